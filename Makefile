@@ -1,0 +1,38 @@
+# Two-command quickstart: `make reproduce` (rebuild every table and figure) and `make test`.
+# Both create the virtual environment in .venv when it is missing and install the project into it.
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+CORES ?= all
+
+.PHONY: setup reproduce quick test lint dryrun bench clean
+
+$(BIN)/.installed: pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $@
+
+setup: $(BIN)/.installed
+
+reproduce: setup  ## every table and figure on the paper's protocol
+	$(BIN)/snakemake --cores $(CORES)
+
+quick: setup  ## the same pipeline on the small protocol (config/quick.yaml)
+	$(BIN)/snakemake --cores $(CORES) --configfile config/quick.yaml
+
+test: setup  ## the whole test suite (pipeline tests use config/quick.yaml)
+	$(BIN)/python -m pytest
+
+lint: setup
+	$(BIN)/ruff check .
+	$(BIN)/snakemake --lint
+
+dryrun: setup
+	$(BIN)/snakemake -n
+
+bench: setup
+	$(BIN)/python benchmarks/bench_closed_form.py
+
+clean:  ## remove generated results (not the data or the environment)
+	rm -rf results/tables results/figures results/runs results/notebooks results/benchmarks logs

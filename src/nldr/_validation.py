@@ -1,0 +1,47 @@
+"""Input checks shared by the public functions (validate at the edge, trust inside)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def as_float_matrix(value, name: str, *, ndim: int = 2, allow_nan: bool = False) -> np.ndarray:
+    """Return ``value`` as a float64 array of ``ndim`` dimensions or raise a ValueError naming it."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a numeric array; got {type(value).__name__} ({exc})") from None
+    if arr.ndim != ndim:
+        raise ValueError(f"{name} must be a {ndim}-d array; got shape {arr.shape}")
+    if arr.size == 0:
+        raise ValueError(f"{name} must not be empty; got shape {arr.shape}")
+    if not allow_nan and not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} contains NaN or infinite values; clean or mask them first")
+    return arr
+
+
+def check_positive(value, name: str, *, allow_zero: bool = False) -> float:
+    """Return ``value`` as a float, raising a ValueError naming it unless it is finite and > 0."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a real number; got {value!r}") from None
+    ok = np.isfinite(x) and (x >= 0 if allow_zero else x > 0)
+    if not ok:
+        bound = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name} must be finite and {bound}; got {value!r}")
+    return x
+
+
+def check_symmetric_kernel(K, name: str = "K", *, rtol: float = 1e-8) -> np.ndarray:
+    """Return a square, finite, symmetric float matrix (symmetrised exactly) or raise a ValueError."""
+    K = as_float_matrix(K, name)
+    if K.shape[0] != K.shape[1]:
+        raise ValueError(f"{name} must be square; got shape {K.shape}")
+    scale = max(float(np.max(np.abs(K))), 1.0)
+    if np.max(np.abs(K - K.T)) > rtol * scale:
+        raise ValueError(
+            f"{name} must be symmetric (max |{name} - {name}.T| = {np.max(np.abs(K - K.T)):.3g}); "
+            f"pass (K + K.T) / 2 if the asymmetry is rounding"
+        )
+    return 0.5 * (K + K.T)

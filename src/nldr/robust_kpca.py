@@ -1,0 +1,263 @@
+"""Closed-form robust kernel PCA (the paper's Algorithm 2 / Theorem 3.1).
+
+Problem. For a symmetric kernel matrix K (n x n) and tau, rho > 0,
+
+    min_C  tau ||C||_* + rho/2 ||K - C^T C||_F^2 .
+
+Maintenance note (the cubic and its threshold). Write K = U diag(lambda) U^T. The minimiser is
+C = diag(l) U^T, where each l_i >= 0 solves the scalar problem
+
+    min_{l >= 0}  phi(l) = rho/2 (lambda_i - l^2)^2 + tau l .
+
+phi'(l) = 0 is the depressed cubic l^3 - lambda l + b = 0 with b = tau / (2 rho). With b > 0 it has
+positive roots only when lambda >= 3 (b/2)^(2/3); the largest is the local minimum, found in closed
+form by the trigonometric formula l = 2 sqrt(lambda/3) cos(arccos(-(3 sqrt(3) b) / (2 lambda^1.5)) / 3).
+It beats l = 0 exactly when phi(l) < phi(0) = rho/2 lambda^2; substituting l^3 = lambda l - b gives
+phi(l) - phi(0) = rho/2 * l (3b - lambda l), so the root wins iff lambda l > 3b, which happens iff
+
+    lambda > lambda_star = 3 (b^2 / 2)^(1/3)       (= 2^(1/3) times the existence threshold).
+
+So every eigenvalue at or below lambda_star (and every negative eigenvalue) maps to zero, and the
+threshold is known before any decomposition. Only tau / rho matters for the minimiser; rho scales the
+energy. The paper's Algorithm 2 solves the cubic per eigenvalue in a loop; here it is one vectorised
+expression over the whole spectrum.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+from ._validation import check_positive, check_symmetric_kernel
+from .kernels import center_cross_kernel, center_kernel, rbf_kernel
+
+__all__ = [
+    "rank_penalty_threshold",
+    "shrink_eigenvalues",
+    "RankPenaltySpectrum",
+    "rank_penalty_spectrum",
+    "closed_form_rank_penalty",
+    "rank_penalty_energy",
+    "RobustKernelPCA",
+]
+
+
+def rank_penalty_threshold(tau: float, rho: float) -> float:
+    """Largest kernel eigenvalue that the closed form maps to zero: 3 (b^2/2)^(1/3), b = tau/(2 rho)."""
+    b = check_positive(tau, "tau") / (2.0 * check_positive(rho, "rho"))
+    return 3.0 * (b * b / 2.0) ** (1.0 / 3.0)
+
+
+def _shrink(lam: np.ndarray, tau: float, rho: float) -> np.ndarray:
+    """Optimal singular values l >= 0 of C for kernel eigenvalues lam (no validation; vectorised)."""
+    b = tau / (2.0 * rho)
+    lam = np.asarray(lam, dtype=np.float64)
+    l = np.zeros_like(lam)
+    keep = lam > 3.0 * (b * b / 2.0) ** (1.0 / 3.0)
+    if np.any(keep):
+        a = lam[keep]
+        arg = np.clip(-(3.0 * np.sqrt(3.0) * b) / (2.0 * a**1.5), -1.0, 1.0)
+        root = 2.0 * np.sqrt(a / 3.0) * np.cos(np.arccos(arg) / 3.0)
+        # One Newton step polishes the trigonometric root to machine precision; the derivative
+        # 3 l^2 - a is positive at the largest root because that root exceeds sqrt(a / 3).
+        root -= (root**3 - a * root + b) / (3.0 * root**2 - a)
+        # Candidate comparison as in Algorithm 2 (guards the boundary against rounding).
+        better = rho / 2.0 * (a - root**2) ** 2 + tau * root < rho / 2.0 * a**2
+        l[keep] = np.where(better, root, 0.0)
+    return l
+
+
+def shrink_eigenvalues(lam, tau: float, rho: float) -> np.ndarray:
+    """Singular values of the optimal C for given kernel eigenvalues.
+
+    Parameters
+    ----------
+    lam : array, shape (n,)
+        Eigenvalues of the kernel matrix (any order, may be negative).
+    tau, rho : float > 0
+        Trace-norm weight and penalty weight.
+
+    Returns
+    -------
+    l : array, shape (n,)
+        ``argmin_{l >= 0} rho/2 (lam - l^2)^2 + tau l`` elementwise; ``l**2`` is the denoised eigenvalue.
+    """
+    lam = np.asarray(lam, dtype=np.float64)
+    if not np.all(np.isfinite(lam)):
+        raise ValueError("lam contains NaN or infinite values")
+    return _shrink(lam, check_positive(tau, "tau"), check_positive(rho, "rho"))
+
+
+@dataclass(frozen=True)
+class RankPenaltySpectrum:
+    """Spectral form of the closed-form solution, eigenvalues sorted in decreasing order.
+
+    Attributes
+    ----------
+    eigenvalues : (n,) eigenvalues lambda of K
+    singular_values : (n,) singular values l of C (zero below the threshold)
+    eigenvectors : (n, n) orthonormal eigenvectors U of K, one per column
+    tau, rho : the parameters used
+    """
+
+    eigenvalues: np.ndarray
+    singular_values: np.ndarray
+    eigenvectors: np.ndarray
+    tau: float
+    rho: float
+
+    @property
+    def rank(self) -> int:
+        """Number of non-zero singular values of C (the dimension of the recovered manifold)."""
+        return int(np.count_nonzero(self.singular_values))
+
+    @property
+    def C(self) -> np.ndarray:
+        """The minimiser C = diag(l) U^T, shape (n, n)."""
+        return self.singular_values[:, None] * self.eigenvectors.T
+
+    @property
+    def low_rank_kernel(self) -> np.ndarray:
+        """C^T C = U diag(l^2) U^T, shape (n, n)."""
+        U = self.eigenvectors
+        return (U * self.singular_values**2) @ U.T
+
+    @property
+    def energy(self) -> float:
+        """tau ||C||_* + rho/2 ||K - C^T C||_F^2, evaluated from the spectrum."""
+        lam, l = self.eigenvalues, self.singular_values
+        return float(self.rho / 2.0 * np.sum((lam - l**2) ** 2) + self.tau * np.sum(l))
+
+
+def rank_penalty_spectrum(K, tau: float, rho: float) -> RankPenaltySpectrum:
+    """Closed-form robust KPCA in spectral form; see :func:`closed_form_rank_penalty`."""
+    K = check_symmetric_kernel(K, "K")
+    tau = check_positive(tau, "tau")
+    rho = check_positive(rho, "rho")
+    lam, U = np.linalg.eigh(K)
+    lam, U = lam[::-1], U[:, ::-1]
+    return RankPenaltySpectrum(lam, _shrink(lam, tau, rho), U, tau, rho)
+
+
+def closed_form_rank_penalty(K, tau: float, rho: float) -> np.ndarray:
+    """Minimise ``tau ||C||_* + rho/2 ||K - C^T C||_F^2`` over C in closed form.
+
+    Parameters
+    ----------
+    K : array, shape (n, n)
+        Symmetric, finite kernel matrix (need not be positive semidefinite; negative eigenvalues map
+        to zero).
+    tau : float > 0
+        Weight of the trace norm of C (equal to the trace norm of the feature-space data).
+    rho : float > 0
+        Weight of the kernel-mismatch penalty. Only tau / rho changes the minimiser.
+
+    Returns
+    -------
+    C : array, shape (n, n)
+        ``diag(l) U^T`` with rows ordered by decreasing kernel eigenvalue; rows beyond the recovered
+        rank are zero. ``C.T @ C`` is the denoised kernel.
+
+    Raises
+    ------
+    ValueError
+        If K is not a finite symmetric square matrix or tau, rho are not finite and positive.
+    """
+    return rank_penalty_spectrum(K, tau, rho).C
+
+
+def rank_penalty_energy(K, C, tau: float, rho: float) -> float:
+    """The objective ``tau ||C||_* + rho/2 ||K - C^T C||_F^2`` at a given C (for checks and plots)."""
+    K = np.asarray(K, dtype=np.float64)
+    C = np.asarray(C, dtype=np.float64)
+    nuclear = np.linalg.svd(C, compute_uv=False).sum()
+    return float(tau * nuclear + rho / 2.0 * np.sum((K - C.T @ C) ** 2))
+
+
+class RobustKernelPCA(TransformerMixin, BaseEstimator):
+    """Robust kernel PCA by the closed-form trace-norm penalty on the feature-space data.
+
+    Fitting computes the (optionally centred) RBF kernel of the training data and replaces its
+    eigenvalues lambda_i by l_i^2, where l_i minimises rho/2 (lambda_i - l^2)^2 + tau l: eigenvalues
+    below a threshold vanish (choosing the rank) and the others shrink. Unlike rank truncation,
+    the number of components follows from tau / rho.
+
+    Parameters
+    ----------
+    gamma : float, default=None
+        RBF inverse squared width, ``K_ij = exp(-gamma ||x_i - x_j||^2)``. None means 1 / n_features.
+    tau : float, default=1.0
+        Trace-norm weight.
+    rho : float, default=1.0
+        Kernel-mismatch weight; only tau / rho matters.
+    center : bool, default=True
+        Centre the kernel in feature space before the decomposition (as kernel PCA does).
+
+    Attributes
+    ----------
+    X_fit_ : array, shape (n_samples, n_features)
+    gamma_ : float, the kernel parameter used
+    eigenvalues_ : array, shape (n_components_,), kernel eigenvalues lambda of the kept components
+    singular_values_ : array, shape (n_components_,), shrunk values l (``l**2 <= lambda``)
+    eigenvectors_ : array, shape (n_samples, n_components_)
+    n_components_ : int, the rank chosen by the threshold
+    spectrum_ : RankPenaltySpectrum, the full solution (every eigenpair)
+    kernel_column_means_ : array, shape (n_samples,), column means of the uncentred training kernel
+    n_features_in_ : int
+
+    Notes
+    -----
+    ``transform`` projects new points onto the principal axes of the training features and scales
+    each coordinate by l_i / sqrt(lambda_i), the same shrinkage the fit applied, so that
+    ``transform(X_fit_)`` equals ``fit_transform``'s output ``U diag(l)`` = C^T.
+    """
+
+    def __init__(self, gamma=None, tau=1.0, rho=1.0, center=True):
+        self.gamma = gamma
+        self.tau = tau
+        self.rho = rho
+        self.center = center
+
+    def _kernel(self, X, Y=None):
+        return rbf_kernel(X, self.gamma_, Y)
+
+    def fit(self, X, y=None):
+        """Fit on X, shape (n_samples, n_features). Returns self."""
+        X = validate_data(self, X, ensure_min_samples=2, dtype=np.float64)
+        self.gamma_ = 1.0 / X.shape[1] if self.gamma is None else check_positive(self.gamma, "gamma")
+        tau = check_positive(self.tau, "tau")
+        rho = check_positive(self.rho, "rho")
+        K = self._kernel(X)
+        self.kernel_column_means_ = K.mean(axis=0)
+        Kc = center_kernel(K) if self.center else K
+        self.spectrum_ = rank_penalty_spectrum(Kc, tau, rho)
+        k = self.spectrum_.rank
+        self.n_components_ = k
+        self.eigenvalues_ = self.spectrum_.eigenvalues[:k]
+        self.singular_values_ = self.spectrum_.singular_values[:k]
+        self.eigenvectors_ = self.spectrum_.eigenvectors[:, :k]
+        self.X_fit_ = X
+        return self
+
+    def transform(self, X):
+        """Coordinates of X on the robust principal axes, shape (n_samples, n_components_)."""
+        check_is_fitted(self)
+        X = validate_data(self, X, reset=False, dtype=np.float64)
+        K = self._kernel(X, self.X_fit_)
+        if self.center:
+            K = center_cross_kernel(K, self.kernel_column_means_)
+        scale = self.singular_values_ / self.eigenvalues_
+        return (K @ self.eigenvectors_) * scale[None, :]
+
+    def fit_transform(self, X, y=None):
+        """Fit and return the training coordinates ``U diag(l)``, shape (n_samples, n_components_)."""
+        self.fit(X)
+        return self.eigenvectors_ * self.singular_values_[None, :]
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.input_tags.pairwise = False
+        return tags

@@ -1,0 +1,108 @@
+"""Tables: tidy result frames -> the canonical CSV, Markdown and LaTeX, with the paper's numbers beside.
+
+The canonical form of every table is a tidy frame with columns ``setting, method, metric, value,
+paper`` (``paper`` empty where the paper publishes nothing). The renderers below pivot it to one row
+per setting and one column per (method, metric), each cell showing ours and the paper's value.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pandas as pd
+
+__all__ = ["TABLE_COLUMNS", "attach_paper", "to_csv", "to_markdown", "to_latex"]
+
+TABLE_COLUMNS = ["setting", "method", "metric", "value", "paper"]
+
+
+def attach_paper(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
+    """Join our (setting, method, metric, value) rows with the paper's; keep our row order."""
+    missing = {"setting", "method", "metric", "value"} - set(ours.columns)
+    if missing:
+        raise ValueError(f"result frame lacks columns {sorted(missing)}")
+    out = ours[["setting", "method", "metric", "value"]].merge(
+        paper, on=["setting", "method", "metric"], how="left", validate="one_to_one"
+    )
+    return out[TABLE_COLUMNS]
+
+
+def _fmt(x, digits: int) -> str:
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "–"
+    if isinstance(x, str):
+        return x
+    return f"{x:.{digits}g}"
+
+
+def _wide(table: pd.DataFrame, digits: int) -> pd.DataFrame:
+    """Pivot to settings x (method metric); a metric ``<m>_sd`` is folded into ``<m>`` as 'mean ± sd'."""
+    lookup = {(r.setting, r.method, r.metric): (r.value, r.paper) for r in table.itertuples(index=False)}
+    settings = list(dict.fromkeys(table["setting"]))
+    columns = list(
+        dict.fromkeys(
+            (r.method, r.metric) for r in table.itertuples(index=False) if not r.metric.endswith("_sd")
+        )
+    )
+    grid = {}
+    for method, metric in columns:
+        cells = []
+        for setting in settings:
+            if (setting, method, metric) not in lookup:
+                cells.append("")
+                continue
+            value, paper = lookup[(setting, method, metric)]
+            sd, paper_sd = lookup.get((setting, method, metric + "_sd"), (None, None))
+            ours = _fmt(value, digits) + ("" if _isnan(sd) else f" ± {_fmt(sd, 2)}")
+            if not _isnan(paper):
+                ours += (
+                    f" ({_fmt(paper, digits)}" + ("" if _isnan(paper_sd) else f" ± {_fmt(paper_sd, 2)}") + ")"
+                )
+            cells.append(ours)
+        grid[f"{method} {metric}"] = cells
+    return pd.DataFrame(grid, index=pd.Index(settings, name="setting"))
+
+
+def _isnan(x) -> bool:
+    return x is None or (isinstance(x, float) and math.isnan(x))
+
+
+def to_csv(table: pd.DataFrame) -> str:
+    """The canonical CSV text (full precision)."""
+    return table[TABLE_COLUMNS].to_csv(index=False, float_format="%.10g")
+
+
+def to_markdown(table: pd.DataFrame, *, title: str = "", digits: int = 4) -> str:
+    """A Markdown table: one row per setting, cells 'ours (paper)'."""
+    wide = _wide(table, digits)
+    header = ["setting", *wide.columns]
+    lines = [f"**{title}**", ""] if title else []
+    lines.append("| " + " | ".join(header) + " |")
+    lines.append("|" + "---|" * len(header))
+    for setting, row in wide.iterrows():
+        lines.append("| " + " | ".join([str(setting), *row.tolist()]) + " |")
+    lines.append("")
+    lines.append("Cells: ours (paper).")
+    return "\n".join(lines) + "\n"
+
+
+def _tex_escape(s: str) -> str:
+    return s.replace("_", r"\_").replace("%", r"\%").replace("–", "--")
+
+
+def to_latex(table: pd.DataFrame, *, caption: str = "", label: str = "", digits: int = 4) -> str:
+    """A LaTeX tabular (booktabs rules), cells 'ours (paper)'."""
+    wide = _wide(table, digits)
+    cols = "l" + "c" * wide.shape[1]
+    lines = [r"\begin{table}[t]", r"\centering"]
+    if caption:
+        lines.append(rf"\caption{{{_tex_escape(caption)}}}")
+    if label:
+        lines.append(rf"\label{{{label}}}")
+    lines += [rf"\begin{{tabular}}{{{cols}}}", r"\toprule"]
+    lines.append(" & ".join(_tex_escape(c) for c in ["setting", *wide.columns]) + r" \\")
+    lines.append(r"\midrule")
+    for setting, row in wide.iterrows():
+        lines.append(" & ".join(_tex_escape(str(c)) for c in [setting, *row.tolist()]) + r" \\")
+    lines += [r"\bottomrule", r"\end{tabular}", r"\end{table}"]
+    return "\n".join(lines) + "\n"

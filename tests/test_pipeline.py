@@ -1,0 +1,68 @@
+"""The pipeline end to end on the quick protocol, in a scratch working directory."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from conftest import REPO
+
+from nldr.tables import TABLE_COLUMNS
+
+SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+
+
+def run_snakemake(workdir, *args):
+    cmd = [*SNAKEMAKE, "-s", str(REPO / "Snakefile"), "-d", str(workdir), *args]
+    return subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    workdir = tmp_path_factory.mktemp("pipeline")
+    proc = run_snakemake(
+        workdir, "table1", "fig3", "-c", "2", "--configfile", str(REPO / "config/quick.yaml")
+    )
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    return workdir
+
+
+@pytest.mark.pipeline
+def test_table1_target_builds_table_figure_and_notebook(quick_run):
+    table = pd.read_csv(quick_run / "results/tables/table1.csv")
+    assert list(table.columns) == TABLE_COLUMNS
+    assert set(table["setting"]) == {"std=0.2", "std=0.3", "std=0.4"}
+    published = table.dropna(subset=["paper"])
+    assert len(published) == 12  # every number of the paper's Table 1 has ours beside it
+    assert published["value"].notna().all()
+    for ext in ("md", "tex"):
+        assert (quick_run / f"results/tables/table1.{ext}").stat().st_size > 0
+    assert (quick_run / "results/figures/fig3.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    notebook = quick_run / "results/notebooks/table1_robust_kpca.ipynb"
+    assert notebook.is_file() and "Table 1" in notebook.read_text()
+    assert not list((quick_run / "results").rglob(".*.tmp")) and not list(
+        (quick_run / "results").rglob(".*.ipynb")
+    )
+
+
+@pytest.mark.pipeline
+def test_second_run_has_nothing_to_do(quick_run):
+    proc = run_snakemake(quick_run, "table1", "fig3", "-n", "--configfile", str(REPO / "config/quick.yaml"))
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "Nothing to be done" in proc.stdout + proc.stderr
+
+
+@pytest.mark.pipeline
+def test_lint_is_clean(tmp_path):
+    proc = run_snakemake(tmp_path, "--lint")
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+
+
+@pytest.mark.pipeline
+def test_config_errors_are_caught_before_any_job(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("table1:\n  gamma: -1\n")
+    proc = run_snakemake(tmp_path, "-n", "--configfile", str(bad))
+    assert proc.returncode != 0
+    assert "gamma" in proc.stdout + proc.stderr and not Path(tmp_path / "results").exists()

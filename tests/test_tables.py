@@ -1,0 +1,44 @@
+import numpy as np
+import pandas as pd
+import pytest
+
+from nldr import paper, tables
+
+
+def test_attach_paper_keeps_rows_and_matches_the_paper():
+    ours = pd.DataFrame(
+        [("std=0.2", "KPCA", "manifold_error", 0.11), ("std=0.2", "KPCA", "best_rank", 7.0)],
+        columns=["setting", "method", "metric", "value"],
+    )
+    out = tables.attach_paper(ours, paper.paper_frame(paper.TABLE1))
+    assert list(out.columns) == tables.TABLE_COLUMNS
+    assert out["paper"].iloc[0] == 0.1099 and np.isnan(out["paper"].iloc[1])
+
+
+def test_renderers_show_ours_sd_and_paper():
+    t = pd.DataFrame(
+        [
+            ("p=0.1", "Ours", "sse", 6.04, 6.0),
+            ("p=0.1", "Ours", "sse_sd", 3.1, 3.0),
+            ("p=0.5", "1-NN", "sse", np.nan, np.nan),
+        ],
+        columns=tables.TABLE_COLUMNS,
+    )
+    md = tables.to_markdown(t)
+    assert "| p=0.1 | 6.04 ± 3.1 (6 ± 3) |" in md
+    assert "–" in md  # not-available cells
+    tex = tables.to_latex(t, caption="x_y", label="tab:x")
+    assert r"sse\_sd" not in tex and r"sse" in tex and r"\label{tab:x}" in tex and "6.04 ± 3.1 (6 ± 3)" in tex
+    back = pd.read_csv(pd.io.common.StringIO(tables.to_csv(t)))
+    assert list(back.columns) == tables.TABLE_COLUMNS and back["value"].iloc[0] == 6.04
+
+
+def test_attach_paper_rejects_frames_without_values():
+    with pytest.raises(ValueError, match="value"):
+        tables.attach_paper(pd.DataFrame({"setting": [], "method": [], "metric": []}), paper.paper_frame([]))
+
+
+def test_paper_tables_have_every_published_cell():
+    assert len(paper.TABLE1) == 12
+    assert len(paper.TABLE2) == 6 * 4 * 2
+    assert len(paper.TABLE3) == len(paper.TABLE4) == 5 * 6

@@ -1,0 +1,27 @@
+# Shared helpers: paths and the parameter grids derived from the config.
+import numpy as np
+
+REPO = Path(workflow.basedir)
+DATA_DIR = config["data"]["dir"]
+T1 = config["table1"]
+T1_STDS = [f"{s:g}" for s in T1["noise_std"]]
+T1_SEEDS = [T1["seed"] + k for k in range(T1["n_draws"])]
+
+
+def table1_taus():
+    tau = T1["tau"]
+    return np.geomspace(tau["min"], tau["max"], tau["num"]).tolist()
+
+
+def table_outputs(name):
+    return multiext(f"results/tables/{name}", ".csv", ".md", ".tex")
+
+
+def data_dir_of(path):
+    """The data directory holding ``path`` (e.g. resources/oil/DataTrn.txt -> resources)."""
+    return str(Path(path).parent.parent)
+
+
+def oil_files(split):
+    tag = {"train": "Trn", "test": "Tst", "validation": "Vdn"}[split]
+    return [f"{DATA_DIR}/oil/Data{tag}.txt", f"{DATA_DIR}/oil/Data{tag}Lbls.txt"]

@@ -1,0 +1,19 @@
+# Each table's target ends by executing its notebook (jupytext percent file -> papermill) into
+# results/notebooks/, so the explained table and figure are themselves a result.
+
+
+rule table1:
+    input:
+        notebook=str(REPO / "notebooks" / "table1_robust_kpca.py"),
+        table="results/tables/table1.csv",
+        figure="results/figures/fig3.png",
+        runs=expand("results/runs/table1/std{std}_seed{seed}.csv", std=T1_STDS, seed=T1_SEEDS),
+    output:
+        "results/notebooks/table1_robust_kpca.ipynb",
+    conda:
+        "../envs/nldr.yaml"
+    log:
+        "logs/notebooks/table1.log",
+    localrule: True
+    script:
+        "../scripts/run_notebook.py"

@@ -1,0 +1,55 @@
+"""Glue shared by the pipeline scripts: logging, BLAS thread pinning, atomic file writes.
+
+No maths here: scripts unpack Snakemake's inputs, call the library, and write through these helpers
+so that a file under results/ is either complete or absent (write to a temporary name, then rename).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+
+
+def setup(snakemake) -> logging.Logger:
+    """Send log records to the rule's log file and pin BLAS threads to the rule's ``threads``."""
+    from threadpoolctl import threadpool_limits
+
+    log_file = snakemake.log[0] if len(snakemake.log) else None
+    handlers = [logging.StreamHandler(sys.stderr)]
+    if log_file:
+        Path(log_file).parent.mkdir(parents=True, exist_ok=True)
+        handlers.append(logging.FileHandler(log_file, mode="w"))
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", handlers=handlers, force=True)
+    threadpool_limits(int(getattr(snakemake, "threads", 1) or 1))
+    return logging.getLogger(snakemake.rule)
+
+
+@contextmanager
+def atomic_path(path):
+    """Yield a temporary path beside ``path``; rename it onto ``path`` only if the block succeeds."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix or ".tmp")
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+
+
+def write_text(path, text: str) -> None:
+    """Write ``text`` to ``path`` atomically."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
+
+
+def write_csv(path, frame) -> None:
+    """Write a DataFrame as CSV atomically (full precision, no index)."""
+    with atomic_path(path) as tmp:
+        frame.to_csv(tmp, index=False, float_format="%.10g")
