@@ -27,3 +27,4 @@ rule all:
     input:
         rules.table1.output,
         rules.fig3.output,
+        rules.table2.output,

@@ -28,7 +28,12 @@ def test_renderers_show_ours_sd_and_paper():
     assert "| p=0.1 | 6.04 ± 3.1 (6 ± 3) |" in md
     assert "–" in md  # not-available cells
     tex = tables.to_latex(t, caption="x_y", label="tab:x")
-    assert r"sse\_sd" not in tex and r"sse" in tex and r"\label{tab:x}" in tex and "6.04 ± 3.1 (6 ± 3)" in tex
+    assert "sse" not in tex and r"\label{tab:x}" in tex and "6.04 ± 3.1 (6 ± 3)" in tex
+    assert "setting & Ours & 1-NN" in tex  # one metric: columns are the methods
+    transposed = tables.to_markdown(t, transpose=True)
+    assert "| method | p=0.1 | p=0.5 |" in transposed and "| Ours | 6.04 ± 3.1 (6 ± 3) |  |" in transposed
+    two = pd.concat([t, t.assign(metric="seconds", paper=np.nan)])
+    assert "Ours sse" in tables.to_markdown(two) and "seconds" not in tables.to_markdown(two, metrics=["sse"])
     back = pd.read_csv(pd.io.common.StringIO(tables.to_csv(t)))
     assert list(back.columns) == tables.TABLE_COLUMNS and back["value"].iloc[0] == 6.04
 

@@ -35,8 +35,15 @@ def _fmt(x, digits: int) -> str:
     return f"{x:.{digits}g}"
 
 
-def _wide(table: pd.DataFrame, digits: int) -> pd.DataFrame:
-    """Pivot to settings x (method metric); a metric ``<m>_sd`` is folded into ``<m>`` as 'mean ± sd'."""
+def _wide(table: pd.DataFrame, digits: int, metrics=None, transpose: bool = False) -> pd.DataFrame:
+    """Pivot to settings x (method metric); a metric ``<m>_sd`` is folded into ``<m>`` as 'mean ± sd'.
+
+    ``metrics`` restricts the shown metrics (their ``_sd`` companions follow); with one metric the
+    columns are labelled by method alone. ``transpose`` puts methods in rows, settings in columns.
+    """
+    if metrics is not None:
+        keep = set(metrics) | {m + "_sd" for m in metrics}
+        table = table[table["metric"].isin(keep)]
     lookup = {(r.setting, r.method, r.metric): (r.value, r.paper) for r in table.itertuples(index=False)}
     settings = list(dict.fromkeys(table["setting"]))
     columns = list(
@@ -59,8 +66,10 @@ def _wide(table: pd.DataFrame, digits: int) -> pd.DataFrame:
                     f" ({_fmt(paper, digits)}" + ("" if _isnan(paper_sd) else f" ± {_fmt(paper_sd, 2)}") + ")"
                 )
             cells.append(ours)
-        grid[f"{method} {metric}"] = cells
-    return pd.DataFrame(grid, index=pd.Index(settings, name="setting"))
+        single = len({m for _, m in columns}) == 1
+        grid[method if single else f"{method} {metric}"] = cells
+    wide = pd.DataFrame(grid, index=pd.Index(settings, name="setting"))
+    return wide.T.rename_axis("method") if transpose else wide
 
 
 def _isnan(x) -> bool:
@@ -72,10 +81,12 @@ def to_csv(table: pd.DataFrame) -> str:
     return table[TABLE_COLUMNS].to_csv(index=False, float_format="%.10g")
 
 
-def to_markdown(table: pd.DataFrame, *, title: str = "", digits: int = 4) -> str:
-    """A Markdown table: one row per setting, cells 'ours (paper)'."""
-    wide = _wide(table, digits)
-    header = ["setting", *wide.columns]
+def to_markdown(
+    table: pd.DataFrame, *, title: str = "", digits: int = 4, metrics=None, transpose: bool = False
+) -> str:
+    """A Markdown table: one row per setting (or per method), cells 'ours ± sd (paper)'."""
+    wide = _wide(table, digits, metrics, transpose)
+    header = [wide.index.name, *wide.columns]
     lines = [f"**{title}**", ""] if title else []
     lines.append("| " + " | ".join(header) + " |")
     lines.append("|" + "---|" * len(header))
@@ -90,9 +101,17 @@ def _tex_escape(s: str) -> str:
     return s.replace("_", r"\_").replace("%", r"\%").replace("–", "--")
 
 
-def to_latex(table: pd.DataFrame, *, caption: str = "", label: str = "", digits: int = 4) -> str:
-    """A LaTeX tabular (booktabs rules), cells 'ours (paper)'."""
-    wide = _wide(table, digits)
+def to_latex(
+    table: pd.DataFrame,
+    *,
+    caption: str = "",
+    label: str = "",
+    digits: int = 4,
+    metrics=None,
+    transpose: bool = False,
+) -> str:
+    """A LaTeX tabular (booktabs rules), cells 'ours ± sd (paper)'."""
+    wide = _wide(table, digits, metrics, transpose)
     cols = "l" + "c" * wide.shape[1]
     lines = [r"\begin{table}[t]", r"\centering"]
     if caption:
@@ -100,7 +119,7 @@ def to_latex(table: pd.DataFrame, *, caption: str = "", label: str = "", digits:
     if label:
         lines.append(rf"\label{{{label}}}")
     lines += [rf"\begin{{tabular}}{{{cols}}}", r"\toprule"]
-    lines.append(" & ".join(_tex_escape(c) for c in ["setting", *wide.columns]) + r" \\")
+    lines.append(" & ".join(_tex_escape(c) for c in [wide.index.name, *wide.columns]) + r" \\")
     lines.append(r"\midrule")
     for setting, row in wide.iterrows():
         lines.append(" & ".join(_tex_escape(str(c)) for c in [setting, *row.tolist()]) + r" \\")

@@ -6,6 +6,10 @@ DATA_DIR = config["data"]["dir"]
 T1 = config["table1"]
 T1_STDS = [f"{s:g}" for s in T1["noise_std"]]
 T1_SEEDS = [T1["seed"] + k for k in range(T1["n_draws"])]
+T2 = config["table2"]
+T2_PS = [f"{p:g}" for p in T2["p"]]
+T2_SEEDS = [T2["seed"] + k for k in range(T2["n_masks"])]
+T2_RUNS = expand("results/runs/table2/p{p}_seed{seed}.csv", p=T2_PS, seed=T2_SEEDS)
 
 
 def table1_taus():

@@ -17,3 +17,20 @@ rule table1:
     localrule: True
     script:
         "../scripts/run_notebook.py"
+
+
+rule table2:
+    input:
+        notebook=str(REPO / "notebooks" / "table2_completion.py"),
+        table="results/tables/table2.csv",
+        runs=T2_RUNS,
+        train=oil_files("train"),
+    output:
+        "results/notebooks/table2_completion.ipynb",
+    conda:
+        "../envs/nldr.yaml"
+    log:
+        "logs/notebooks/table2.log",
+    localrule: True
+    script:
+        "../scripts/run_notebook.py"

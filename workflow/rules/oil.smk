@@ -28,3 +28,30 @@ rule table1_run:
         "results/benchmarks/table1_run/std{std}_seed{seed}.tsv"
     script:
         "../scripts/table1_run.py"
+
+
+rule table2_run:
+    input:
+        train=oil_files("train"),
+    output:
+        "results/runs/table2/p{p}_seed{seed}.csv",
+    params:
+        n_rows=T2["n_rows"],
+        gamma=T2["gamma"],
+        methods=T2["methods"],
+        data_dir=lambda wildcards, input: data_dir_of(input.train[0]),
+    wildcard_constraints:
+        p=r"0\.[0-9]+",
+        seed=r"\d+",
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=20,
+    conda:
+        "../envs/nldr.yaml"
+    log:
+        "logs/table2_run/p{p}_seed{seed}.log",
+    benchmark:
+        "results/benchmarks/table2_run/p{p}_seed{seed}.tsv"
+    script:
+        "../scripts/table2_run.py"

@@ -13,3 +13,17 @@ rule table1_table:
     localrule: True
     script:
         "../scripts/table1_table.py"
+
+
+rule table2_table:
+    input:
+        T2_RUNS,
+    output:
+        table_outputs("table2"),
+    conda:
+        "../envs/nldr.yaml"
+    log:
+        "logs/table2_table.log",
+    localrule: True
+    script:
+        "../scripts/table2_table.py"

@@ -1,5 +1,27 @@
 """Baselines the paper compares against: KPCA (Table 1) and imputation methods (Table 2)."""
 
 from .kpca import kpca_spectrum, truncated_kernel
+from .mean import mean_impute
+from .nearest_neighbour import NearestNeighbourResult, nearest_neighbour_impute
+from .pkpca import PKPCAResult, pkpca_impute, pkpca_objective
+from .ppca import PPCAResult, ppca_impute, ppca_log_likelihood
+from .rkpca import KernelSubspace, RKPCAResult, fit_kernel_subspace, rkpca_energy, rkpca_impute
 
-__all__ = ["kpca_spectrum", "truncated_kernel"]
+__all__ = [
+    "kpca_spectrum",
+    "truncated_kernel",
+    "mean_impute",
+    "NearestNeighbourResult",
+    "nearest_neighbour_impute",
+    "PPCAResult",
+    "ppca_impute",
+    "ppca_log_likelihood",
+    "PKPCAResult",
+    "pkpca_impute",
+    "pkpca_objective",
+    "KernelSubspace",
+    "RKPCAResult",
+    "fit_kernel_subspace",
+    "rkpca_energy",
+    "rkpca_impute",
+]

@@ -1,0 +1,237 @@
+"""Probabilistic kernel PCA with missing data (Sanguinetti & Lawrence 2006), the "PKPCA" of Table 2.
+
+PPCA is fitted in the feature space of an (uncentred) RBF kernel, and the missing inputs are chosen
+to maximise its likelihood. The likelihood is evaluated in the dual, where only the kernel matrix
+K = Phi Phi^T (n x n) appears.
+
+Maintenance note (the objective and its gradient). Restricted to the n-dimensional span of the
+mapped data, the sample covariance Phi^T Phi / n has the non-zero eigenvalues lambda_i of K / n
+(eigenvectors u_i of K). PPCA with q components, maximised over its loadings and noise variance
+(Tipping & Bishop 1999), has log-likelihood
+
+    L(X) = -(n/2) [ sum_{i<=q} log lambda_i + (n - q) log sigma^2 + n ] + const,
+    sigma^2 = (tr K / n - sum_{i<=q} lambda_i) / (n - q)     (mean of the discarded eigenvalues).
+
+Because the loadings and sigma^2 are at their optimum for the current X, the envelope theorem lets
+us differentiate this profile likelihood through the spectrum alone: with d lambda_i / dK =
+u_i u_i^T / n and d tr K / dK = I,
+
+    dE/dK = (1/2) [ U_q diag(1 / lambda_q) U_q^T + (I - U_q U_q^T) / sigma^2 ],   E = -L,
+
+i.e. half the inverse of the model covariance in the dual. ``rbf_kernel_vjp`` carries it to the
+inputs. (The identity part contributes nothing: the RBF diagonal is constant.) Minimising E over the
+missing entries with the model refitted at every evaluation *is* the alternation "refit PPCA, move
+the missing inputs uphill" carried to its fixed point; the outer loop only re-chooses the number of
+components q (those capturing ``variance_fraction`` of tr K, plus ``extra_components``), until q no
+longer changes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize
+
+from .._validation import as_float_matrix, check_positive
+from ..kernels import rbf_kernel_vjp, squared_distances
+from .mean import _check_masked_matrix, _mean_fill
+
+__all__ = ["PKPCAResult", "pkpca_impute", "pkpca_objective"]
+
+
+@dataclass(frozen=True)
+class PKPCAResult:
+    """Outcome of ``pkpca_impute``.
+
+    Attributes
+    ----------
+    X : array, shape (n, d)
+        Completed matrix (observed entries of W kept).
+    n_iter : int
+        Outer iterations (choice of q followed by an inner L-BFGS solve).
+    converged : bool
+        True when the last inner solve converged and q did not change.
+    n_components : int
+        Number of feature-space components q of the final model.
+    n_components_history : tuple of int
+        q used in every outer iteration.
+    objective : array, shape (n_iter + 1,)
+        Negative profile log-likelihood E (see ``pkpca_objective``) at the start and after every
+        outer iteration (with that iteration's q).
+    n_inner_iter : int
+        Total L-BFGS iterations.
+    message : str
+        Message of the last inner solve.
+    """
+
+    X: np.ndarray
+    n_iter: int
+    converged: bool
+    n_components: int
+    n_components_history: tuple[int, ...]
+    objective: np.ndarray
+    n_inner_iter: int
+    message: str
+
+
+def _objective(X: np.ndarray, gamma: float, q: int) -> tuple[float, np.ndarray]:
+    n = X.shape[0]
+    K = np.exp(-gamma * squared_distances(X))
+    mu, U = np.linalg.eigh(K)
+    mu, U = mu[::-1], U[:, ::-1]
+    lam = np.maximum(mu[:q], np.finfo(float).tiny) / n
+    s2 = max((np.trace(K) / n - lam.sum()) / (n - q), np.finfo(float).tiny)
+    value = 0.5 * n * (np.log(lam).sum() + (n - q) * np.log(s2) + n)
+    Uq = U[:, :q]
+    G = 0.5 * ((Uq / lam[None, :]) @ Uq.T + (np.eye(n) - Uq @ Uq.T) / s2)
+    return float(value), rbf_kernel_vjp(X, K, G, gamma)
+
+
+def _components_for_fraction(K: np.ndarray, fraction: float, extra: int) -> int:
+    mu = np.linalg.eigvalsh(K)[::-1]
+    cumulative = np.cumsum(mu) / mu.sum()
+    q = int(np.searchsorted(cumulative, fraction - 1e-12) + 1) + extra
+    return min(max(q, 1), K.shape[0] - 1)
+
+
+def pkpca_objective(X, gamma: float, n_components: int) -> tuple[float, np.ndarray]:
+    """Negative profile log-likelihood of feature-space PPCA, and its gradient with respect to X.
+
+    Parameters
+    ----------
+    X : array, shape (n, d)
+        Complete data, samples as rows.
+    gamma : float > 0
+        RBF inverse squared width, ``K_ij = exp(-gamma ||x_i - x_j||^2)`` (uncentred).
+    n_components : int, 1 <= n_components < n
+        Number q of feature-space principal components.
+
+    Returns
+    -------
+    value : float
+        ``E = (n/2) [sum_{i<=q} log lambda_i + (n - q) log sigma^2 + n]`` with lambda the eigenvalues
+        of K / n and sigma^2 the mean of the discarded ones; minus the log-likelihood up to a constant.
+    gradient : array, shape (n, d)
+        dE/dX (see the module's maintenance note).
+    """
+    X = as_float_matrix(X, "X")
+    gamma = check_positive(gamma, "gamma")
+    n = X.shape[0]
+    if isinstance(n_components, bool) or not isinstance(n_components, int | np.integer):
+        raise ValueError(f"n_components must be an integer; got {n_components!r}")
+    if not 1 <= n_components < n:
+        raise ValueError(f"n_components must satisfy 1 <= n_components < n = {n}; got {n_components}")
+    return _objective(X, gamma, int(n_components))
+
+
+def pkpca_impute(
+    W,
+    mask,
+    gamma: float,
+    *,
+    n_components: int | None = None,
+    variance_fraction: float = 0.95,
+    extra_components: int = 1,
+    max_iter: int = 20,
+    inner_max_iter: int = 500,
+    gtol: float = 1e-4,
+) -> PKPCAResult:
+    """Impute missing entries by maximising the likelihood of PPCA in an RBF feature space.
+
+    Parameters
+    ----------
+    W : array, shape (n, d)
+        Data, samples as rows; entries where ``mask`` is False are ignored (they may be NaN).
+    mask : array of bool, shape (n, d)
+        True where ``W`` is observed. Every column needs an observed entry.
+    gamma : float > 0
+        RBF inverse squared width (0.075 on oil flow in the paper).
+    n_components : int, optional
+        Fix the number q of feature-space components. By default q is re-chosen in every outer
+        iteration as the fewest leading eigenvalues of K holding ``variance_fraction`` of its trace,
+        plus ``extra_components`` (Sanguinetti & Lawrence's choice: 95% of the variance, plus one).
+    variance_fraction : float in (0, 1]
+    extra_components : int >= 0
+    max_iter : int
+        Maximum number of outer iterations (choose q, minimise over the missing entries).
+    inner_max_iter : int
+        Maximum L-BFGS iterations per outer iteration.
+    gtol : float
+        L-BFGS projected-gradient tolerance of each inner solve.
+
+    Returns
+    -------
+    PKPCAResult
+        Starting from mean imputation; ``converged`` is False if ``max_iter`` outer iterations ran
+        without q settling and the inner solve converging.
+    """
+    W, mask = _check_masked_matrix(W, mask)
+    gamma = check_positive(gamma, "gamma")
+    n = W.shape[0]
+    if n < 3:
+        raise ValueError(f"W needs at least 3 rows for a feature-space PPCA; got {n}")
+    if n_components is not None:
+        if isinstance(n_components, bool) or not isinstance(n_components, int | np.integer):
+            raise ValueError(f"n_components must be an integer or None; got {n_components!r}")
+        if not 1 <= n_components < n:
+            raise ValueError(f"n_components must satisfy 1 <= n_components < n = {n}; got {n_components}")
+    if not (0.0 < float(variance_fraction) <= 1.0):
+        raise ValueError(f"variance_fraction must be in (0, 1]; got {variance_fraction!r}")
+    if isinstance(extra_components, bool) or not isinstance(extra_components, int | np.integer):
+        raise ValueError(f"extra_components must be a non-negative integer; got {extra_components!r}")
+    if extra_components < 0:
+        raise ValueError(f"extra_components must be a non-negative integer; got {extra_components!r}")
+    for name, value in (("max_iter", max_iter), ("inner_max_iter", inner_max_iter)):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+            raise ValueError(f"{name} must be a positive integer; got {value!r}")
+    gtol = check_positive(gtol, "gtol")
+
+    X = _mean_fill(W, mask)
+    missing = ~mask
+
+    def choose_q() -> int:
+        if n_components is not None:
+            return int(n_components)
+        K = np.exp(-gamma * squared_distances(X))
+        return _components_for_fraction(K, float(variance_fraction), int(extra_components))
+
+    def negative_log_likelihood(v: np.ndarray, q: int) -> tuple[float, np.ndarray]:
+        X[missing] = v
+        value, grad = _objective(X, gamma, q)
+        return value, grad[missing]
+
+    q = choose_q()
+    objective = [_objective(X, gamma, q)[0]]
+    qs: list[int] = []
+    n_inner = 0
+    converged = not missing.any()
+    message = "no missing entries" if converged else ""
+    n_iter = 0
+    while not converged and n_iter < max_iter:
+        n_iter += 1
+        res = minimize(
+            negative_log_likelihood,
+            X[missing],
+            args=(q,),
+            jac=True,
+            method="L-BFGS-B",
+            options={"maxiter": int(inner_max_iter), "gtol": gtol, "ftol": 1e-15},
+        )
+        X[missing] = res.x
+        n_inner += int(res.nit)
+        message = str(res.message)
+        objective.append(float(res.fun))
+        qs.append(q)
+        q = choose_q()
+        converged = bool(res.success) and q == qs[-1]
+    return PKPCAResult(
+        X=X,
+        n_iter=n_iter,
+        converged=converged,
+        n_components=qs[-1] if qs else q,
+        n_components_history=tuple(qs),
+        objective=np.asarray(objective),
+        n_inner_iter=n_inner,
+        message=message,
+    )

@@ -1,0 +1,139 @@
+"""Array layouts of NRSfM data: the benchmark's stacked matrices <-> the library's samples-as-rows.
+
+The CMU mocap files (Akhter et al. 2009) stack frames vertically:
+
+- 3D shapes ``S`` (3F, P): rows 3f, 3f+1, 3f+2 hold X, Y, Z of the P points in frame f;
+- image tracks ``W`` (2F, P): rows 2f, 2f+1 hold image x, y of frame f;
+- cameras ``Rs`` (2F, 3): rows 2f, 2f+1 are the orthographic projection of frame f.
+
+The library treats each frame as one sample (a row), so the regulariser sees shapes as points in
+R^{3P}:
+
+- shapes ``X`` (F, 3P): row f is ``S[3f:3f+3, :].ravel()`` (C order: all X, then all Y, then all Z);
+- image tracks ``W`` (F, 2P): row f is ``W[2f:2f+2, :].ravel()`` (all x, then all y);
+- cameras ``R`` (F, 2, 3).
+
+A visibility mask is a bool array (F, P), True where point j is observed (both image coordinates)
+in frame f.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._validation import as_float_matrix, check_positive
+
+__all__ = [
+    "stack_to_rows",
+    "rows_to_stack",
+    "cameras_from_stack",
+    "cameras_to_stack",
+    "random_visibility_mask",
+]
+
+
+def stack_to_rows(M, dim: int = 3) -> np.ndarray:
+    """Stacked per-frame blocks (dim*F, P) -> samples as rows (F, dim*P).
+
+    Parameters
+    ----------
+    M : array, shape (dim*F, P)
+        ``S`` (dim=3, 3D shapes) or ``W`` (dim=2, image tracks), frames stacked vertically.
+    dim : {3, 2}
+        Rows per frame: 3 for shapes, 2 for image tracks.
+
+    Returns
+    -------
+    X : array, shape (F, dim*P)
+        Row f is ``M[dim*f:dim*f+dim, :].ravel()`` (coordinate-major: all x, then all y, ...).
+    """
+    M = as_float_matrix(M, "M", allow_nan=True)
+    dim = _check_dim(dim)
+    if M.shape[0] % dim:
+        raise ValueError(f"M must have a multiple of dim={dim} rows (dim per frame); got shape {M.shape}")
+    F, P = M.shape[0] // dim, M.shape[1]
+    return M.reshape(F, dim * P).copy()
+
+
+def rows_to_stack(X, P: int, dim: int = 3) -> np.ndarray:
+    """Samples as rows (F, dim*P) -> stacked per-frame blocks (dim*F, P); inverse of :func:`stack_to_rows`.
+
+    Parameters
+    ----------
+    X : array, shape (F, dim*P)
+    P : int
+        Number of points.
+    dim : {3, 2}
+        Coordinates per point: 3 for shapes, 2 for image tracks.
+
+    Returns
+    -------
+    M : array, shape (dim*F, P)
+        Rows dim*f .. dim*f+dim-1 hold the coordinates of frame f.
+    """
+    X = as_float_matrix(X, "X", allow_nan=True)
+    dim = _check_dim(dim)
+    P = _check_n_points(P)
+    if X.shape[1] != dim * P:
+        raise ValueError(f"X must have dim*P = {dim}*{P} = {dim * P} columns; got shape {X.shape}")
+    return X.reshape(X.shape[0] * dim, P).copy()
+
+
+def cameras_from_stack(Rs) -> np.ndarray:
+    """Stacked cameras (2F, 3) -> array (F, 2, 3); frame f's camera is ``Rs[2f:2f+2]``."""
+    Rs = as_float_matrix(Rs, "Rs")
+    if Rs.shape[0] % 2 or Rs.shape[1] != 3:
+        raise ValueError(f"Rs must have shape (2F, 3); got {Rs.shape}")
+    return Rs.reshape(-1, 2, 3).copy()
+
+
+def cameras_to_stack(R) -> np.ndarray:
+    """Cameras (F, 2, 3) -> stacked (2F, 3); inverse of :func:`cameras_from_stack`."""
+    R = as_float_matrix(R, "R", ndim=3)
+    if R.shape[1:] != (2, 3):
+        raise ValueError(f"R must have shape (F, 2, 3); got {R.shape}")
+    return R.reshape(-1, 3).copy()
+
+
+def random_visibility_mask(
+    n_frames: int, n_points: int, missing_fraction: float, random_state=None
+) -> np.ndarray:
+    """Remove a fraction of the 2D point observations uniformly at random.
+
+    Exactly ``round(missing_fraction * F * P)`` (frame, point) pairs are hidden, chosen uniformly
+    without replacement (a point is hidden in both image coordinates at once), as in the paper's
+    "randomly removing 50% of the image measurements" (Section 4.3).
+
+    Parameters
+    ----------
+    n_frames, n_points : int
+        F and P.
+    missing_fraction : float in [0, 1)
+    random_state : None, int or numpy.random.Generator
+
+    Returns
+    -------
+    mask : bool array, shape (F, P)
+        True where the point is observed.
+    """
+    F, P = _check_n_points(n_frames, "n_frames"), _check_n_points(n_points, "n_points")
+    frac = check_positive(missing_fraction, "missing_fraction", allow_zero=True)
+    if frac >= 1.0:
+        raise ValueError(f"missing_fraction must be in [0, 1); got {missing_fraction!r}")
+    rng = np.random.default_rng(random_state)
+    n_missing = int(round(frac * F * P))
+    mask = np.ones(F * P, dtype=bool)
+    mask[rng.choice(F * P, size=n_missing, replace=False)] = False
+    return mask.reshape(F, P)
+
+
+def _check_dim(dim) -> int:
+    if dim not in (2, 3):
+        raise ValueError(f"dim must be 3 (shapes) or 2 (image tracks); got {dim!r}")
+    return int(dim)
+
+
+def _check_n_points(P, name: str = "P") -> int:
+    if isinstance(P, bool) or not isinstance(P, int | np.integer) or P < 1:
+        raise ValueError(f"{name} must be a positive integer; got {P!r}")
+    return int(P)

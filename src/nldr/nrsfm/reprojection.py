@@ -1,0 +1,131 @@
+"""Orthographic reprojection data term of NRSfM (paper eq. 12-13), for the regularizer's loop.
+
+f(X) = sum_{f,j} Z_fj ||w_f(x_j) - R_f s_f(x_j)||^2 with shapes as rows X (F, 3P), image tracks as
+rows W (F, 2P), cameras R (F, 2, 3) and the visibility mask Z (F, P); see :mod:`nldr.nrsfm.layout`
+and the data-term protocol in :mod:`nldr.data_terms`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from .._validation import as_float_matrix
+
+__all__ = ["OrthographicReprojection", "check_cameras", "check_visibility_mask"]
+
+
+def check_cameras(R, n_frames: int | None = None, name: str = "R") -> np.ndarray:
+    """Validate cameras: a finite float array of shape (F, 2, 3) (rows need not be orthonormal)."""
+    R = as_float_matrix(R, name, ndim=3)
+    if R.shape[1:] != (2, 3):
+        raise ValueError(
+            f"{name} must have shape (F, 2, 3); got {R.shape} (stacked (2F, 3) cameras: use "
+            f"nldr.nrsfm.layout.cameras_from_stack)"
+        )
+    if n_frames is not None and R.shape[0] != n_frames:
+        raise ValueError(f"{name} must hold one camera per frame, {n_frames}; got {R.shape[0]}")
+    return R
+
+
+def check_visibility_mask(mask, shape: tuple[int, int], name: str = "mask") -> np.ndarray:
+    """Validate a visibility mask of shape (F, P): bool, or 0/1 converted to bool; None = all observed."""
+    if mask is None:
+        return np.ones(shape, dtype=bool)
+    mask = np.asarray(mask)
+    if mask.dtype != bool:
+        if not (np.issubdtype(mask.dtype, np.number) and np.isin(mask, (0, 1)).all()):
+            raise ValueError(f"{name} must be boolean (or 0/1): True where point j is observed in frame f")
+        mask = mask.astype(bool)
+    if mask.shape != tuple(shape):
+        raise ValueError(f"{name} must have shape (F, P) = {tuple(shape)}; got {mask.shape}")
+    return mask
+
+
+class OrthographicReprojection:
+    """f(X) = sum_{f,j} mask_fj ||w_f(x_j) - R_f s_f(x_j)||^2, the NRSfM data term with known cameras.
+
+    Residuals are ordered like the observed entries of ``W2d`` in C order (frame, image coordinate,
+    point). They are linear in X, so the Jacobian is a constant sparse matrix built once (and again
+    by :meth:`set_cameras`); it has 3 non-zeros per residual.
+
+    Parameters
+    ----------
+    W2d : array, shape (F, 2P)
+        Image tracks as rows: row f is (x_f1..x_fP, y_f1..y_fP), in the length unit of the shapes.
+        Entries of unobserved points are ignored (they may be NaN).
+    R : array, shape (F, 2, 3)
+        Orthographic cameras: w_f(x_j) = R_f s_f(x_j).
+    mask : bool array, shape (F, P), optional
+        True where point j is observed in frame f (both coordinates). Default: all observed.
+
+    Attributes
+    ----------
+    shape : tuple (F, 3P)
+        Shape of the variable X (shapes as rows).
+    W : array, shape (F, 2P)
+        Image tracks with unobserved entries set to 0.
+    R : array, shape (F, 2, 3)
+    mask : bool array, shape (F, P)
+    n_residuals : int
+        2 x number of observed (frame, point) pairs.
+    """
+
+    def __init__(self, W2d, R, mask=None):
+        W2d = as_float_matrix(W2d, "W2d", allow_nan=True)
+        if W2d.shape[1] % 2:
+            raise ValueError(f"W2d must have shape (F, 2P) (image tracks as rows); got {W2d.shape}")
+        F, P = W2d.shape[0], W2d.shape[1] // 2
+        mask = check_visibility_mask(mask, (F, P))
+        mask2 = np.concatenate([mask, mask], axis=1)  # (F, 2P), same layout as W2d
+        if not np.all(np.isfinite(W2d[mask2])):
+            raise ValueError("W2d has NaN or infinite values at observed entries (where mask is True)")
+        self.n_frames, self.n_points = F, P
+        self.shape = (F, 3 * P)
+        self.W = np.where(mask2, W2d, 0.0)
+        self.mask = mask
+        self._mask2 = mask2
+        self._observed = np.flatnonzero(mask2.ravel())
+        self.n_residuals = int(self._observed.size)
+        self.set_cameras(R)
+
+    def set_cameras(self, R) -> None:
+        """Replace the cameras (F, 2, 3) and rebuild the Jacobian (for camera/shape alternation)."""
+        self.R = check_cameras(R, self.n_frames)
+        self._J = self._build_jacobian()
+
+    def _build_jacobian(self) -> sp.csr_matrix:
+        # Residual i is the observed entry (f, c, j) of W: r_i = W[f, cP + j] - sum_k R[f, c, k] X[f, kP + j],
+        # so row i has -R[f, c, k] at column f*3P + k*P + j, k = 0, 1, 2.
+        F, P = self.n_frames, self.n_points
+        f, rest = np.divmod(self._observed, 2 * P)
+        c, j = np.divmod(rest, P)
+        k = np.arange(3)
+        rows = np.repeat(np.arange(self.n_residuals), 3)
+        cols = (f[:, None] * 3 * P + k[None, :] * P + j[:, None]).ravel()
+        vals = -self.R[f[:, None], c[:, None], k[None, :]].ravel()
+        return sp.csr_matrix((vals, (rows, cols)), shape=(self.n_residuals, F * 3 * P))
+
+    def project(self, X: np.ndarray) -> np.ndarray:
+        """Image tracks (F, 2P) of shapes X (F, 3P) under the cameras, all points (mask ignored)."""
+        F, P = self.n_frames, self.n_points
+        return np.einsum("fck,fkp->fcp", self.R, X.reshape(F, 3, P)).reshape(F, 2 * P)
+
+    def residuals(self, X: np.ndarray) -> np.ndarray:
+        """Observed W minus projection, shape (n_residuals,), in image length units."""
+        return (self.W - self.project(X)).ravel()[self._observed]
+
+    def jacobian(self, X: np.ndarray | None = None) -> sp.csr_matrix:
+        """d residuals / d vec(X) (C order), shape (n_residuals, 3FP); constant, ``X`` is unused."""
+        return self._J
+
+    def value(self, X: np.ndarray) -> float:
+        """f(X), the sum of squared reprojection errors over observed points (length unit squared)."""
+        r = self.residuals(X)
+        return float(r @ r)
+
+    def gradient(self, X: np.ndarray) -> np.ndarray:
+        """df/dX = -2 R_f^T (mask o (w_f - R_f s_f)) per frame, shape (F, 3P)."""
+        F, P = self.n_frames, self.n_points
+        E = np.where(self._mask2, self.W - self.project(X), 0.0).reshape(F, 2, P)
+        return -2.0 * np.einsum("fck,fcp->fkp", self.R, E).reshape(self.shape)

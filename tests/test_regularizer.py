@@ -1,0 +1,297 @@
+"""Tests of the penalty-method solver (Algorithm 1) and its building blocks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from threadpoolctl import threadpool_limits
+
+from nldr.data_terms import MaskedLeastSquares
+from nldr.kernels import center_kernel, rbf_kernel
+from nldr.regularizer import (
+    RegularizerResult,
+    kernel_mismatch_jacobian,
+    kernel_mismatch_residuals,
+    minimize_regularized,
+    optimal_kernel_factor,
+    pre_image_step,
+    reduced_energy,
+    regularized_energy,
+)
+from nldr.robust_kpca import closed_form_rank_penalty
+
+
+def _central_difference(fun, S, h=1e-6):
+    """Jacobian (m, S.size) of a vector function of S by central differences."""
+    x = S.ravel()
+    cols = []
+    for k in range(x.size):
+        e = np.zeros_like(x)
+        e[k] = h
+        cols.append((fun((x + e).reshape(S.shape)) - fun((x - e).reshape(S.shape))) / (2 * h))
+    return np.stack(cols, axis=1)
+
+
+def _helix(n, rng, noise=0.0):
+    """n points on one turn of a helix in R^6 (non-linear dimension 1, linear rank 3).
+
+    Each coordinate of the helix (cos t, sin t, 0.3 t) appears twice, once phase-shifted, so that a
+    point keeping a few of its six entries is still pinned to one place on the curve.
+    """
+    t = np.sort(rng.uniform(0.0, 2.0 * np.pi, n))
+    X = np.column_stack([np.cos(t), np.sin(t), np.cos(t + 1), np.sin(t + 1), 0.3 * t, 0.3 * t])
+    return X + noise * rng.standard_normal(X.shape)
+
+
+@pytest.fixture(autouse=True)
+def single_blas_thread():
+    # Multithreaded BLAS on small matrices is slower, and much slower beside other jobs.
+    with threadpool_limits(1):
+        yield
+
+
+@pytest.fixture
+def small_problem():
+    rng = np.random.default_rng(0)
+    W = rng.standard_normal((9, 3))
+    mask = rng.random(W.shape) > 0.3
+    S = W + 0.3 * rng.standard_normal(W.shape)
+    return W, mask, S
+
+
+# ---------------------------------------------------------------------------------------------
+# Residuals, Jacobians, energies
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("center", [False, True])
+def test_mismatch_residuals_square_to_the_penalty(small_problem, center):
+    _, _, S = small_problem
+    C = optimal_kernel_factor(S, gamma=0.4, tau=0.2, rho=3.0, center=center) * 0.9
+    r = kernel_mismatch_residuals(S, C, gamma=0.4, rho=3.0, center=center)
+    K = rbf_kernel(S, 0.4)
+    if center:
+        K = center_kernel(K)
+    assert r.shape == (9 * 10 // 2,)
+    assert r @ r == pytest.approx(1.5 * np.sum((K - C.T @ C) ** 2), rel=1e-12)
+
+
+def test_sparse_jacobian_matches_finite_differences(small_problem):
+    _, _, S = small_problem
+    gamma, rho = 0.4, 3.0
+    C = optimal_kernel_factor(S, gamma=gamma, tau=0.2, rho=rho)
+    J = kernel_mismatch_jacobian(S, gamma=gamma, rho=rho)
+    assert sp.issparse(J)
+    n, d = S.shape
+    assert J.shape == (n * (n + 1) // 2, n * d)
+    assert J.nnz == n * (n - 1) // 2 * 2 * d  # 2 d entries per off-diagonal pair, none on the diagonal
+    J_fd = _central_difference(lambda X: kernel_mismatch_residuals(X, C, gamma=gamma, rho=rho), S)
+    np.testing.assert_allclose(J.toarray(), J_fd, atol=1e-8, rtol=1e-6)
+
+
+@pytest.mark.parametrize("center", [False, True])
+def test_matrix_free_jacobian_matches_finite_differences(small_problem, center):
+    _, _, S = small_problem
+    gamma, rho = 0.4, 3.0
+    C = optimal_kernel_factor(S, gamma=gamma, tau=0.2, rho=rho, center=center)
+    J = kernel_mismatch_jacobian(S, gamma=gamma, rho=rho, center=center, matrix_free=True)
+    J_dense = J.matmat(np.eye(S.size))
+    J_fd = _central_difference(
+        lambda X: kernel_mismatch_residuals(X, C, gamma=gamma, rho=rho, center=center), S
+    )
+    np.testing.assert_allclose(J_dense, J_fd, atol=1e-8, rtol=1e-6)
+    # The adjoint is the transpose.
+    np.testing.assert_allclose(J.rmatmat(np.eye(J.shape[0])), J_dense.T, atol=1e-12)
+
+
+@pytest.mark.parametrize("center", [False, True])
+def test_reduced_gradient_matches_finite_differences(small_problem, center):
+    W, mask, S = small_problem
+    term = MaskedLeastSquares(W, mask)
+    kw = dict(gamma=0.4, tau=0.2, rho=5.0, center=center)
+    value, grad = reduced_energy(S, term, **kw)
+    assert grad.shape == S.shape
+    g_fd = _central_difference(lambda X: np.array([reduced_energy(X, term, **kw)[0]]), S).reshape(S.shape)
+    np.testing.assert_allclose(grad, g_fd, atol=1e-6, rtol=1e-5)
+
+
+@pytest.mark.parametrize("center", [False, True])
+def test_reduced_energy_is_the_full_energy_at_the_optimal_factor(small_problem, center):
+    W, mask, S = small_problem
+    term = MaskedLeastSquares(W, mask)
+    kw = dict(gamma=0.4, tau=0.2, rho=5.0, center=center)
+    C = optimal_kernel_factor(S, **kw)
+    value, _ = reduced_energy(S, term, **kw)
+    assert value == pytest.approx(regularized_energy(S, C, term, **kw), rel=1e-10)
+    # ... and no other factor does better.
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        assert regularized_energy(S, C + 0.01 * rng.standard_normal(C.shape), term, **kw) > value
+    K = rbf_kernel(S, 0.4)
+    if not center:
+        np.testing.assert_allclose(
+            C.T @ C, (lambda C2: C2.T @ C2)(closed_form_rank_penalty(K, 0.2, 5.0)), atol=1e-12
+        )
+
+
+def test_alternation_steps_never_increase_the_energy():
+    rng = np.random.default_rng(2)
+    W = _helix(30, rng, noise=0.05)
+    mask = rng.random(W.shape) > 0.2
+    term = MaskedLeastSquares(W, mask)
+    S = np.where(mask, W, np.nanmean(np.where(mask, W, np.nan), axis=0))
+    kw = dict(gamma=0.5, tau=0.1, rho=10.0)
+    C = optimal_kernel_factor(S, gamma=0.5, tau=0.1, rho=1.0)  # some non-optimal factor to start from
+    energy = regularized_energy(S, C, term, **kw)
+    for _ in range(4):
+        C = optimal_kernel_factor(S, **kw)
+        after_c = regularized_energy(S, C, term, **kw)
+        assert after_c <= energy + 1e-12 * abs(energy)
+        S = pre_image_step(S, C, term, gamma=0.5, rho=10.0, max_iter=20)
+        after_s = regularized_energy(S, C, term, **kw)
+        assert after_s <= after_c + 1e-12 * abs(after_c)
+        energy = after_s
+
+
+# ---------------------------------------------------------------------------------------------
+# The solver
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def helix_completion():
+    rng = np.random.default_rng(3)
+    X = _helix(60, rng)
+    mask = rng.random(X.shape) > 0.2
+    S0 = np.where(mask, X, np.nanmean(np.where(mask, X, np.nan), axis=0))
+    return X, mask, S0
+
+
+@pytest.mark.parametrize("center", [False, True])
+def test_recovers_points_on_a_curve_far_better_than_mean_imputation(helix_completion, center):
+    X, mask, S0 = helix_completion
+    res = minimize_regularized(MaskedLeastSquares(X, mask), S0, gamma=0.5, tau=0.1, center=center)
+    assert isinstance(res, RegularizerResult)
+    mean_error = np.sum((S0 - X) ** 2)
+    error = np.sum((res.S - X) ** 2)
+    assert error < 0.3 * mean_error, (error, mean_error)
+    assert res.S.shape == X.shape and res.C.shape == (60, 60)
+    assert res.n_outer == len(res.rho_history) == len(res.rank_history) == len(res.stage_energy)
+    assert res.energy_history.shape == res.stage_of_iteration.shape
+    assert res.wall_time > 0 and res.x is res.S
+
+
+@pytest.mark.parametrize("center", [False, True])
+def test_alternation_descends_and_improves_on_mean_imputation(helix_completion, center):
+    # The literal alternation crawls (see the module docstring), so only a short run is checked.
+    X, mask, S0 = helix_completion
+    term = MaskedLeastSquares(X, mask)
+    res = minimize_regularized(
+        term,
+        S0,
+        gamma=0.5,
+        tau=0.1,
+        center=center,
+        method="alternation",
+        rho_max=10.0,
+        max_inner=10,
+        lm_max_iter=5,
+    )
+    assert np.sum((res.S - X) ** 2) < 0.9 * np.sum((S0 - X) ** 2)
+    assert res.n_inner == res.energy_history.size == 20
+    for k in range(res.n_outer):
+        e = res.energy_history[res.stage_of_iteration == k]
+        assert np.all(np.diff(e) <= 1e-12 * np.abs(e[1:]))
+        # The final closed-form C-step can only lower the stage's last energy further.
+        assert res.stage_energy[k] <= e[-1] * (1 + 1e-12)
+    C = optimal_kernel_factor(res.S, gamma=0.5, tau=0.1, rho=10.0, center=center)
+    np.testing.assert_allclose(res.C.T @ res.C, C.T @ C, atol=1e-10)
+
+
+def test_finite_difference_pre_image_step_agrees_with_the_analytic_one(small_problem):
+    W, mask, S = small_problem
+    term = MaskedLeastSquares(W, mask)
+    C = optimal_kernel_factor(S, gamma=0.4, tau=0.2, rho=3.0)
+    kw = dict(gamma=0.4, rho=3.0, max_iter=30, tol=1e-12)
+    S_analytic = pre_image_step(S, C, term, **kw)
+    S_fd = pre_image_step(S, C, term, jacobian="finite-difference", **kw)
+    np.testing.assert_allclose(S_fd, S_analytic, atol=1e-5)
+
+
+def test_default_solver_converges_and_reports_it(helix_completion):
+    X, mask, S0 = helix_completion
+    res = minimize_regularized(MaskedLeastSquares(X, mask), S0, gamma=0.5, tau=0.1)
+    assert res.converged and res.success
+    assert "converged" in res.message
+    np.testing.assert_allclose(res.rho_history, [1.0, 10.0, 100.0, 1e3, 1e4])
+    assert res.n_inner == res.energy_history.size
+    # Within a stage L-BFGS never increases the energy.
+    for k in range(res.n_outer):
+        e = res.energy_history[res.stage_of_iteration == k]
+        assert np.all(np.diff(e) <= 1e-9 * np.abs(e[1:]))
+
+
+@pytest.mark.parametrize("method", ["reduced", "alternation"])
+def test_iteration_limit_is_reported(helix_completion, method):
+    X, mask, S0 = helix_completion
+    res = minimize_regularized(
+        MaskedLeastSquares(X, mask),
+        S0,
+        gamma=0.5,
+        tau=0.1,
+        method=method,
+        max_inner=1,
+        rho_max=10.0,
+        lm_max_iter=3,
+    )
+    assert not res.converged and not res.success
+    assert "limit" in res.message and "rho=1" in res.message
+    assert res.n_inner == 2 * 1
+
+
+# ---------------------------------------------------------------------------------------------
+# Validation at the edge
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        (dict(gamma=0.0), "gamma"),
+        (dict(gamma=-1.0), "gamma"),
+        (dict(tau=0.0), "tau"),
+        (dict(tau=np.nan), "tau"),
+        (dict(rho0=0.0), "rho"),
+        (dict(rho_growth=1.0), "rho_growth"),
+        (dict(rho_max=0.5, rho0=1.0), "rho_max"),
+        (dict(method="newton"), "method"),
+        (dict(max_inner=0), "max_inner"),
+        (dict(max_inner=2.5), "max_inner"),
+        (dict(tol=-1.0), "tol"),
+        (dict(jacobian="exact"), "jacobian"),
+        (dict(lm_max_iter=0), "lm_max_iter"),
+    ],
+)
+def test_bad_parameters_raise_naming_the_argument(small_problem, kwargs, name):
+    W, mask, S = small_problem
+    args = dict(gamma=0.4, tau=0.1) | kwargs
+    with pytest.raises(ValueError, match=name):
+        minimize_regularized(MaskedLeastSquares(W, mask), S, **args)
+
+
+def test_bad_start_or_data_term_raises(small_problem):
+    W, mask, S = small_problem
+    term = MaskedLeastSquares(W, mask)
+    with pytest.raises(ValueError, match="S0"):
+        minimize_regularized(term, S[:-1], gamma=0.4, tau=0.1)
+    with pytest.raises(ValueError, match="S0"):
+        minimize_regularized(term, S.T, gamma=0.4, tau=0.1)
+    S_nan = S.copy()
+    S_nan[0, 0] = np.nan
+    with pytest.raises(ValueError, match="S0"):
+        minimize_regularized(term, S_nan, gamma=0.4, tau=0.1)
+    with pytest.raises(ValueError, match="data_term"):
+        minimize_regularized(object(), S, gamma=0.4, tau=0.1)
+    with pytest.raises(ValueError, match="C"):
+        regularized_energy(S, np.ones((3, 4)), term, gamma=0.4, tau=0.1, rho=1.0)
