@@ -17,6 +17,7 @@ validate(config, "workflow/schemas/config.schema.yaml")
 include: "workflow/rules/common.smk"
 include: "workflow/rules/data.smk"
 include: "workflow/rules/oil.smk"
+include: "workflow/rules/nrsfm.smk"
 include: "workflow/rules/tables.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/notebooks.smk"
@@ -28,3 +29,5 @@ rule all:
         rules.table1.output,
         rules.fig3.output,
         rules.table2.output,
+        rules.table3.output,
+        rules.fig1.output,

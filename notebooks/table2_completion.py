@@ -66,15 +66,16 @@ display(Markdown(tables.to_markdown(result, digits=3, metrics=["sse"], transpose
 # Solver health across all masks: fraction of runs that converged and median seconds per solve.
 
 # %%
-health = result[result["metric"].isin(["converged_frac", "median_seconds", "n_masks"])]
-health.pivot_table(index="method", columns=["metric", "setting"], values="value", sort=False).round(3)
+all_runs = pd.concat([pd.read_csv(r) for r in run_paths], ignore_index=True)
+all_runs.groupby(["method", "p"], sort=False).agg(
+    converged=("converged", "mean"), median_seconds=("seconds", "median"), max_seconds=("seconds", "max")
+).unstack("p").round(3)
 
 # %% [markdown]
 # ## Error per mask
 # Every method sees the same masks, so the comparison is paired: each line is one mask.
 
 # %%
-all_runs = pd.concat([pd.read_csv(r) for r in run_paths], ignore_index=True)
 fig, axes = plt.subplots(
     1, all_runs["p"].nunique(), figsize=(4 * all_runs["p"].nunique(), 3.2), squeeze=False
 )

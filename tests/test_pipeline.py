@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+import yaml
 from conftest import REPO
 
 from nldr.tables import TABLE_COLUMNS
@@ -22,7 +23,16 @@ def run_snakemake(workdir, *args):
 def quick_run(tmp_path_factory):
     workdir = tmp_path_factory.mktemp("pipeline")
     proc = run_snakemake(
-        workdir, "table1", "fig3", "table2", "-c", "2", "--configfile", str(REPO / "config/quick.yaml")
+        workdir,
+        "table1",
+        "fig3",
+        "table2",
+        "table3",
+        "fig1",
+        "-c",
+        "2",
+        "--configfile",
+        str(REPO / "config/quick.yaml"),
     )
     assert proc.returncode == 0, proc.stderr[-4000:]
     return workdir
@@ -49,7 +59,15 @@ def test_table1_target_builds_table_figure_and_notebook(quick_run):
 @pytest.mark.pipeline
 def test_second_run_has_nothing_to_do(quick_run):
     proc = run_snakemake(
-        quick_run, "table1", "fig3", "table2", "-n", "--configfile", str(REPO / "config/quick.yaml")
+        quick_run,
+        "table1",
+        "fig3",
+        "table2",
+        "table3",
+        "fig1",
+        "-n",
+        "--configfile",
+        str(REPO / "config/quick.yaml"),
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "Nothing to be done" in proc.stdout + proc.stderr
@@ -81,3 +99,25 @@ def test_table2_target_has_every_method_beside_the_paper(quick_run):
     runs = pd.concat(pd.read_csv(p) for p in (quick_run / "results/runs/table2").glob("*.csv"))
     # every method saw the same mask within a run file
     assert runs.groupby(["p", "seed"])["n_missing"].nunique().eq(1).all()
+
+
+@pytest.mark.pipeline
+def test_table3_target_has_tnh_and_both_widths_beside_the_paper(quick_run):
+    quick = yaml.safe_load((REPO / "config/quick.yaml").read_text())["table3"]
+    table = pd.read_csv(quick_run / "results/tables/table3.csv")
+    assert list(table.columns) == TABLE_COLUMNS
+    e3d = table[table["metric"] == "e3d"]
+    assert set(e3d["method"]) == {"TNH", "Kernel d_max", "Kernel d_med"}
+    expected = {f"{s.capitalize()} {k}" for s in quick["sequences"] for k in ("full", "missing50")}
+    assert set(e3d["setting"]) == expected | {"Mean full", "Mean missing50"}
+    assert e3d["value"].notna().all() and (e3d["value"] > 0).all()
+    assert e3d["paper"].notna().all()  # every cell we report has the paper's number beside it
+    # the Mean row is the mean over the sequences of the per-sequence values
+    for kind in ("full", "missing50"):
+        for method in ("TNH", "Kernel d_med"):
+            rows = e3d[(e3d["method"] == method) & e3d["setting"].str.endswith(kind)]
+            per_seq = rows[~rows["setting"].str.startswith("Mean")]["value"]
+            mean = rows[rows["setting"] == f"Mean {kind}"]["value"].item()
+            assert mean == pytest.approx(per_seq.mean(), rel=1e-8)  # CSV keeps 10 digits
+    assert (quick_run / "results/figures/fig1.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (quick_run / "results/notebooks/table3_nrsfm.ipynb").is_file()

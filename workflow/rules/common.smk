@@ -9,6 +9,12 @@ T1_SEEDS = [T1["seed"] + k for k in range(T1["n_draws"])]
 T2 = config["table2"]
 T2_PS = [f"{p:g}" for p in T2["p"]]
 T2_SEEDS = [T2["seed"] + k for k in range(T2["n_masks"])]
+T3 = config["table3"]
+T3_RUNS = [f"results/runs/table3/{seq}_full_seed{T3['seed']}.csv" for seq in T3["sequences"]] + [
+    f"results/runs/table3/{seq}_missing_seed{T3['seed'] + k}.csv"
+    for seq in T3["sequences"]
+    for k in range(T3["n_seeds"])
+]
 T2_RUNS = expand("results/runs/table2/p{p}_seed{seed}.csv", p=T2_PS, seed=T2_SEEDS)
 
 

@@ -13,3 +13,20 @@ rule fig3:
     localrule: True
     script:
         "../scripts/fig3.py"
+
+
+rule fig1:
+    input:
+        shapes=[f.replace(".csv", ".npz") for f in T3_RUNS],
+        mocap=expand(f"{DATA_DIR}/nrsfm/{{seq}}.mat", seq=T3["sequences"]),
+    output:
+        "results/figures/fig1.png",
+    params:
+        data_dir=lambda wildcards, input: data_dir_of(input.mocap[0]),
+    conda:
+        "../envs/nldr.yaml"
+    log:
+        "logs/fig1.log",
+    localrule: True
+    script:
+        "../scripts/fig1.py"

@@ -34,3 +34,21 @@ rule table2:
     localrule: True
     script:
         "../scripts/run_notebook.py"
+
+
+rule table3:
+    input:
+        notebook=str(REPO / "notebooks" / "table3_nrsfm.py"),
+        table="results/tables/table3.csv",
+        figure="results/figures/fig1.png",
+        runs=T3_RUNS,
+        mocap=expand(f"{DATA_DIR}/nrsfm/{{seq}}.mat", seq=T3["sequences"]),
+    output:
+        "results/notebooks/table3_nrsfm.ipynb",
+    conda:
+        "../envs/nldr.yaml"
+    log:
+        "logs/notebooks/table3.log",
+    localrule: True
+    script:
+        "../scripts/run_notebook.py"

@@ -27,3 +27,17 @@ rule table2_table:
     localrule: True
     script:
         "../scripts/table2_table.py"
+
+
+rule table3_table:
+    input:
+        T3_RUNS,
+    output:
+        table_outputs("table3"),
+    conda:
+        "../envs/nldr.yaml"
+    log:
+        "logs/table3_table.log",
+    localrule: True
+    script:
+        "../scripts/table3_table.py"
