@@ -30,6 +30,7 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from nldr.data_terms import MaskedLeastSquares
+from nldr.datasets import load_oil
 from nldr.regularizer import minimize_regularized, optimal_kernel_factor, pre_image_step
 
 GAMMA = 0.075
@@ -39,8 +40,9 @@ PAPER = {0.05: (2.3, 2.0), 0.10: (6.0, 3.0), 0.25: (22.0, 7.0), 0.50: (70.0, 11.
 TARGET = {0.05: 2.8, 0.10: 6.75, 0.25: 23.75, 0.50: 72.75}
 
 
-def load(path: str) -> np.ndarray:
-    return np.loadtxt(path)[:N_ROWS]
+def load(data_dir) -> np.ndarray:
+    """The first N_ROWS oil-flow training rows (fetched into resources/ or from $NLDR_DATA_MIRROR)."""
+    return load_oil("train", data_dir)[0][:N_ROWS]
 
 
 def make_mask(shape, p: float, seed: int) -> np.ndarray:
@@ -126,7 +128,7 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--data", default="/work/shared/data/oil/DataTrn.txt", help="oil-flow DataTrn.txt")
+    parser.add_argument("--data-dir", default=None, help="data folder (default resources/)")
     parser.add_argument("--out", default="results/benchmarks", help="output directory")
     parser.add_argument("--masks", type=int, default=10, help="masks per p for the reduced method")
     parser.add_argument("--alternation-masks", type=int, default=None, help="masks per p (default --masks)")
@@ -140,12 +142,12 @@ def main(argv=None) -> None:
     out.mkdir(parents=True, exist_ok=True)
     n_alt = args.masks if args.alternation_masks is None else args.alternation_masks
     tasks = [
-        (args.data, method, p, seed, {})
+        (args.data_dir, method, p, seed, {})
         for method in args.methods
         for p in args.p
         for seed in range(args.masks if method == "reduced" else n_alt)
     ]
-    jac_tasks = [(args.data, p, seed, 100.0) for p in args.p for seed in range(args.jacobian_masks)]
+    jac_tasks = [(args.data_dir, p, seed, 100.0) for p in args.p for seed in range(args.jacobian_masks)]
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(run_solver, tasks))
         jac_rows = [row for rows_ in pool.map(run_jacobian, jac_tasks) for row in rows_]

@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import csv
 import multiprocessing as mp
-import os
 import sys
 import time
 
@@ -91,7 +90,7 @@ def main(argv=None):
     parser.add_argument("--clarabel-timeout", type=float, default=120.0)
     parser.add_argument("--step", type=int, default=10, help="keep every step-th frame")
     parser.add_argument("--threads", type=int, default=1, help="BLAS threads per solve")
-    parser.add_argument("--data-dir", default=os.environ.get("NLDR_DATA_MIRROR", "/work/shared/data"))
+    parser.add_argument("--data-dir", default=None, help="data folder (default resources/)")
     parser.add_argument("--csv", default=None, help="also write the rows to this CSV file")
     args = parser.parse_args(argv)
 
