@@ -1,0 +1,632 @@
+"""Camera estimation for NRSfM (nldr.nrsfm.cameras): rigid factorisation, metric upgrade, quaternion LM,
+camera/shape alternation and evaluation up to the global orthogonal gauge.
+
+Tolerances. On noise-free data every estimate below is exact in exact arithmetic, so the bounds only have
+to absorb rounding (eps ~ 2.2e-16 times modest condition numbers) or the solvers' own stopping
+tolerances (1e-12); they are set orders of magnitude above those and far below any real error.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from nldr.datasets import load_mocap
+from nldr.nrsfm.cameras import (
+    align_global,
+    camera_error,
+    camera_to_quaternion,
+    global_camera_alignment,
+    initialize_cameras,
+    metric_upgrade,
+    nearest_orthonormal_rows,
+    quaternion_to_camera,
+    refine_cameras,
+    refine_cameras_and_shapes,
+    reprojection_error,
+    rigid_factorization,
+    rigid_shape_step,
+)
+from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
+from nldr.nrsfm.metrics import center_per_frame, e3d
+from nldr.nrsfm.reprojection import OrthographicReprojection
+
+# ---------------------------------------------------------------------------------------------------------
+# helpers
+
+
+def random_rotation(rng) -> np.ndarray:
+    Q, Rq = np.linalg.qr(rng.standard_normal((3, 3)))
+    Q = Q * np.sign(np.diag(Rq))
+    return Q if np.linalg.det(Q) > 0 else -Q
+
+
+def random_orthogonal(rng, det: int) -> np.ndarray:
+    """A random 3x3 orthogonal matrix with determinant ``det`` (+1 rotation, -1 rotation and reflection)."""
+    return random_rotation(rng) @ np.diag([1.0, 1.0, float(det)])
+
+
+def project(R, X) -> np.ndarray:
+    F, P = X.shape[0], X.shape[1] // 3
+    return np.einsum("fck,fkp->fcp", R, X.reshape(F, 3, P)).reshape(F, 2 * P)
+
+
+def rigid_scene(n_frames=20, n_points=15, seed=0):
+    """A centred rigid shape S (3, P), random rotation cameras R (F, 2, 3), tracks W (F, 2P), shapes X."""
+    rng = np.random.default_rng(seed)
+    # anisotropic extent (3 : 2 : 1), so that no direction is degenerate for the factorisation
+    S = rng.standard_normal((3, n_points)) * np.array([[3.0], [2.0], [1.0]])
+    S -= S.mean(axis=1, keepdims=True)
+    R = np.stack([random_rotation(rng)[:2] for _ in range(n_frames)])
+    X = np.broadcast_to(S.ravel(), (n_frames, 3 * n_points)).copy()
+    return project(R, X), R, X, S
+
+
+def deforming_scene(n_frames=20, n_points=15, rank=2, seed=0):
+    """Low-rank deforming shapes (mean shape plus `rank` basis shapes), centred, random rotation cameras."""
+    rng = np.random.default_rng(seed)
+    basis = rng.standard_normal((rank + 1, 3 * n_points))
+    coeffs = np.column_stack([np.ones(n_frames), 0.5 * rng.standard_normal((n_frames, rank))])
+    X = center_per_frame(coeffs @ basis, n_points)
+    R = np.stack([random_rotation(rng)[:2] for _ in range(n_frames)])
+    return project(R, X), R, X
+
+
+def perturb_cameras(R, degrees, rng) -> np.ndarray:
+    """Right-multiply every camera by a rotation of exactly `degrees` about a random axis."""
+    axes = rng.standard_normal((R.shape[0], 3))
+    axes *= np.radians(degrees) / np.linalg.norm(axes, axis=1, keepdims=True)
+    return R @ Rotation.from_rotvec(axes).as_matrix()
+
+
+def complete(R) -> np.ndarray:
+    """2x3 cameras with orthonormal rows -> 3x3 rotations (third row = cross product)."""
+    return np.concatenate([R, np.cross(R[:, 0], R[:, 1])[:, None]], axis=1)
+
+
+def hide(W, mask) -> np.ndarray:
+    """NaN at the unobserved entries, so that any use of them would show."""
+    return np.where(np.concatenate([mask, mask], axis=1), W, np.nan)
+
+
+def row_gram_error(R) -> float:
+    """max |R_f R_f^T - I_2| over the frames."""
+    return float(np.abs(np.einsum("fck,fdk->fcd", R, R) - np.eye(2)).max())
+
+
+# ---------------------------------------------------------------------------------------------------------
+# rigid factorisation and camera initialisation
+
+
+def test_rigid_factorization_full_data_is_exact():
+    """Full noise-free rigid tracks: the truncated SVD factorises W = M S exactly (rank 3)."""
+    W, _, _, _ = rigid_scene(seed=1)
+    F, P = W.shape[0], W.shape[1] // 2
+    fac = rigid_factorization(W)
+    assert fac.M.shape == (F, 2, 3) and fac.S.shape == (3, P)
+    assert (fac.n_iter, fac.converged) == (0, True)
+    np.testing.assert_allclose(np.einsum("fck,kp->fcp", fac.M, fac.S).reshape(F, 2 * P), W, atol=1e-12)
+    assert fac.rms < 1e-13
+
+
+def test_rigid_factorization_missing_data_completes_the_tracks():
+    """30% missing: variable projection finds an exact rank-3 fit, which predicts the hidden entries."""
+    W, _, _, _ = rigid_scene(seed=2)
+    F, P = W.shape[0], W.shape[1] // 2
+    mask = random_visibility_mask(F, P, 0.3, random_state=2)
+    fac = rigid_factorization(hide(W, mask), mask)
+    assert fac.converged and fac.n_iter > 0
+    # noise-free and generic: the rank-3 completion is unique, so the unobserved entries are recovered too
+    fitted = np.einsum("fck,kp->fcp", fac.M, fac.S).reshape(F, 2 * P)
+    np.testing.assert_allclose(fitted, W, atol=1e-8 * np.abs(W).max())
+    assert fac.rms < 1e-10 * np.abs(W).max()
+
+
+@pytest.mark.parametrize("refine_metric", [True, False])
+@pytest.mark.parametrize("missing", [0.0, 0.3])
+def test_initialize_cameras_recovers_true_cameras_up_to_global_orthogonal(missing, refine_metric):
+    """Noise-free rigid object: initialize_cameras = true cameras times ONE orthogonal Q (det +-1)."""
+    W, R_true, _, _ = rigid_scene(seed=3)
+    F, P = W.shape[0], W.shape[1] // 2
+    mask = random_visibility_mask(F, P, missing, random_state=3)
+    R = initialize_cameras(hide(W, mask), mask, refine_metric=refine_metric)
+    assert R.shape == (F, 2, 3)
+    assert row_gram_error(R) < 1e-10
+    # Independent of the module's alignment: the stacked true cameras (2F, 3) have full column rank, so
+    # R_est = R_true Q0 determines Q0 by least squares; it must be orthogonal and fit exactly.
+    Q0 = np.linalg.lstsq(R_true.reshape(-1, 3), R.reshape(-1, 3), rcond=None)[0]
+    np.testing.assert_allclose(Q0 @ Q0.T, np.eye(3), atol=1e-6)
+    np.testing.assert_allclose(R_true @ Q0, R, atol=1e-6)
+    # ... and with the module's alignment: R_est Q^T = R_true
+    Q = global_camera_alignment(R, R_true)
+    np.testing.assert_allclose(R @ Q.T, R_true, atol=1e-6)
+    np.testing.assert_allclose(Q, Q0, atol=1e-6)
+    assert camera_error(R, R_true) < 1e-6  # degrees
+
+
+def test_initialize_cameras_on_deforming_shapes_gives_orthonormal_cameras():
+    """Non-rigid tracks (rank 9): the rigid fit is only approximate, but the cameras stay orthographic."""
+    W, R_true, _ = deforming_scene(seed=4)
+    fac = rigid_factorization(W)
+    assert fac.rms > 1e-3 * np.abs(W).max()  # the rank-3 model cannot fit a deforming shape exactly
+    R = initialize_cameras(W)
+    assert R.shape == R_true.shape and row_gram_error(R) < 1e-10
+
+
+# ---------------------------------------------------------------------------------------------------------
+# metric upgrade
+
+
+@pytest.mark.parametrize("refine", [True, False])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_metric_upgrade_undoes_a_random_affine_ambiguity(seed, refine):
+    """M = R_true G^-1 (G random, cond 25, either sign of det): M G_est has orthonormal rows and
+    G^-1 G_est is orthogonal, i.e. only the global gauge is left."""
+    rng = np.random.default_rng(seed)
+    R_true = np.stack([random_rotation(rng)[:2] for _ in range(10)])
+    U, V = random_orthogonal(rng, 1), random_orthogonal(rng, (-1) ** seed)
+    G = U @ np.diag([0.2, 1.0, 5.0]) @ V
+    M = R_true @ np.linalg.inv(G)
+    G_est = metric_upgrade(M, refine=refine)
+    assert G_est.shape == (3, 3)
+    assert row_gram_error(M @ G_est) < 1e-8
+    H = np.linalg.solve(G, G_est)
+    np.testing.assert_allclose(H @ H.T, np.eye(3), atol=1e-8)
+
+
+def test_two_views_do_not_determine_the_metric_upgrade():
+    """Why >= 3 frames are needed: with two cameras (normals k1, k2), Q = I + t (k1 k2^T + k2 k1^T) meets
+    all six constraints m^T Q m = 1, m_a^T Q m_b = 0 and is positive definite for small t."""
+    rng = np.random.default_rng(5)
+    R = np.stack([random_rotation(rng)[:2] for _ in range(2)])
+    k1, k2 = np.cross(R[0, 0], R[0, 1]), np.cross(R[1, 0], R[1, 1])
+    for t in (0.1, 0.3):
+        Q = np.eye(3) + t * (np.outer(k1, k2) + np.outer(k2, k1))
+        assert np.linalg.eigvalsh(Q).min() > 0
+        np.testing.assert_allclose(
+            np.einsum("fck,kl,fdl->fcd", R, Q, R), np.broadcast_to(np.eye(2), (2, 2, 2)), atol=1e-14
+        )
+        # G = I and G = chol(Q) both make the cameras R G orthographic, yet G is not orthogonal
+        G = np.linalg.cholesky(Q)
+        assert row_gram_error(R @ G) < 1e-12
+        assert np.abs(G @ G.T - np.eye(3)).max() > 0.05
+
+
+@pytest.mark.parametrize("refine", [True, False])
+def test_metric_upgrade_rejects_fewer_than_three_frames(refine):
+    """Two frames do not determine G: a ValueError naming M is expected."""
+    rng = np.random.default_rng(3)
+    R_true = np.stack([random_rotation(rng)[:2] for _ in range(2)])
+    M = R_true @ np.linalg.inv(rng.standard_normal((3, 3)))
+    with pytest.raises(ValueError, match=r"^M\b"):
+        metric_upgrade(M, refine=refine)
+
+
+@pytest.mark.parametrize("n_frames", [1, 2])
+def test_initialize_cameras_rejects_fewer_than_three_frames(n_frames):
+    """Fewer than 3 frames cannot give metric cameras: a ValueError naming W2d is expected."""
+    W, _, _, _ = rigid_scene(n_frames=n_frames, seed=6)
+    with pytest.raises(ValueError, match="W2d"):
+        initialize_cameras(W)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# nearest matrix with orthonormal rows
+
+
+def test_nearest_orthonormal_rows_is_the_polar_factor():
+    """R = U V^T = (A A^T)^(-1/2) A with ||A - R||^2 = sum (s_i - 1)^2; idempotent and equivariant."""
+    rng = np.random.default_rng(7)
+    A = rng.standard_normal((30, 2, 3))
+    R = nearest_orthonormal_rows(A)
+    assert R.shape == A.shape and row_gram_error(R) < 1e-13
+    U, s, Vt = np.linalg.svd(A, full_matrices=False)
+    np.testing.assert_allclose(R, U @ Vt, atol=1e-12)
+    lam, E = np.linalg.eigh(np.einsum("fck,fdk->fcd", A, A))
+    inv_sqrt = np.einsum("fij,fj,fkj->fik", E, 1 / np.sqrt(lam), E)
+    np.testing.assert_allclose(R, inv_sqrt @ A, atol=1e-10)
+    np.testing.assert_allclose(np.sum((A - R) ** 2, axis=(1, 2)), np.sum((s - 1) ** 2, axis=1), atol=1e-12)
+    np.testing.assert_allclose(nearest_orthonormal_rows(R), R, atol=1e-13)
+    c, sn = np.cos(0.7), np.sin(0.7)
+    L, Rt = np.array([[c, -sn], [sn, c]]) @ np.diag([1.0, -1.0]), random_orthogonal(rng, -1)  # orthogonal
+    np.testing.assert_allclose(nearest_orthonormal_rows(L @ A @ Rt), L @ R @ Rt, atol=1e-12)
+
+
+def test_nearest_orthonormal_rows_beats_brute_force():
+    """No random matrix with orthonormal rows, and no small rotation of the answer, is closer to A."""
+    rng = np.random.default_rng(8)
+    A = rng.standard_normal((5, 2, 3))
+    R = nearest_orthonormal_rows(A)
+    best = np.sum((A - R) ** 2, axis=(1, 2))
+    # every 2x3 matrix with orthonormal rows is the top of some orthogonal 3x3 matrix
+    candidates = np.stack([random_orthogonal(rng, 1)[:2] for _ in range(3000)])
+    dist = np.sum((A[:, None] - candidates[None]) ** 2, axis=(2, 3))  # (5, 3000)
+    assert np.all(dist >= best[:, None] - 1e-12)
+    local = R[:, None] @ Rotation.from_rotvec(1e-3 * rng.standard_normal((200, 3))).as_matrix()[None]
+    assert np.all(np.sum((A[:, None] - local) ** 2, axis=(2, 3)) >= best[:, None] - 1e-12)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# quaternions
+
+
+def test_quaternion_to_camera_matches_scipy_and_has_orthonormal_rows():
+    """Any non-zero q gives the first two rows of the rotation of q / |q| (scalar first)."""
+    rng = np.random.default_rng(9)
+    q = rng.standard_normal((40, 4)) * rng.uniform(0.5, 2.0, (40, 1))
+    R = quaternion_to_camera(q)
+    assert R.shape == (40, 2, 3) and row_gram_error(R) < 1e-13
+    np.testing.assert_allclose(R, Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_matrix()[:, :2], atol=1e-13)
+    np.testing.assert_array_equal(quaternion_to_camera(q[0]), R[0])
+    np.testing.assert_allclose(quaternion_to_camera(-3.0 * q), R, atol=1e-13)  # scale/sign invariant
+
+
+def test_quaternion_jacobian_matches_central_differences():
+    """Analytic dR/dq equals central differences (step 1e-5: truncation ~h^2 ~ 1e-10, rounding
+    ~eps/h ~ 2e-11), and J q = 0 (R is homogeneous of degree 0 in q)."""
+    rng = np.random.default_rng(10)
+    q = rng.standard_normal((25, 4))
+    q *= rng.uniform(0.5, 2.0, (25, 1)) / np.linalg.norm(q, axis=1, keepdims=True)
+    R, J = quaternion_to_camera(q, jacobian=True)
+    assert J.shape == (25, 2, 3, 4)
+    np.testing.assert_array_equal(R, quaternion_to_camera(q))
+    h = 1e-5
+    fd = np.stack(
+        [(quaternion_to_camera(q + h * e) - quaternion_to_camera(q - h * e)) / (2 * h) for e in np.eye(4)],
+        axis=-1,
+    )
+    assert np.abs(J - fd).max() <= 1e-7 * np.abs(J).max()
+    assert np.abs(np.einsum("fcki,fi->fck", J, q)).max() < 1e-13
+    R1, J1 = quaternion_to_camera(q[0], jacobian=True)
+    assert J1.shape == (2, 3, 4)
+    np.testing.assert_array_equal(J1, J[0])
+
+
+def test_camera_to_quaternion_inverts_quaternion_to_camera():
+    """camera_to_quaternion(quaternion_to_camera(q)) = +-q/|q| (unit, w >= 0), over every branch of
+    Shepperd's method: generic, identity, half-turns about each axis and near-half-turns."""
+    rng = np.random.default_rng(11)
+    rotvecs = [np.zeros(3), *(np.pi * np.eye(3)), *((np.pi - 1e-9) * np.eye(3))]
+    axes = rng.standard_normal((6, 3))
+    rotvecs += list((np.pi - 1e-7) * axes / np.linalg.norm(axes, axis=1, keepdims=True))
+    q_special = Rotation.from_rotvec(np.array(rotvecs)).as_quat()[:, [3, 0, 1, 2]]
+    q = np.vstack([rng.standard_normal((40, 4)), q_special])
+    q_unit = q / np.linalg.norm(q, axis=1, keepdims=True)
+    q_back = camera_to_quaternion(quaternion_to_camera(q))
+    assert q_back.shape == q.shape
+    np.testing.assert_allclose(np.linalg.norm(q_back, axis=1), 1.0, atol=1e-13)
+    assert np.all(q_back[:, 0] >= 0)
+    sign = np.sign(np.sum(q_back * q_unit, axis=1))
+    np.testing.assert_allclose(q_back, sign[:, None] * q_unit, atol=1e-12)
+    # the four branches (largest of trace, r00, r11, r22) are all exercised
+    r = complete(quaternion_to_camera(q))
+    branch = np.argmax(np.stack([np.trace(r, axis1=1, axis2=2), r[:, 0, 0], r[:, 1, 1], r[:, 2, 2]], 1), 1)
+    assert set(branch.tolist()) == {0, 1, 2, 3}
+    assert camera_to_quaternion(quaternion_to_camera(q[0])).shape == (4,)
+
+
+def test_camera_to_quaternion_projects_non_orthonormal_cameras():
+    """For any 2x3 A, quaternion_to_camera(camera_to_quaternion(A)) is the nearest orthonormal-row matrix."""
+    rng = np.random.default_rng(12)
+    A = rng.standard_normal((20, 2, 3))
+    np.testing.assert_allclose(
+        quaternion_to_camera(camera_to_quaternion(A)), nearest_orthonormal_rows(A), atol=1e-12
+    )
+
+
+@pytest.mark.parametrize("q", [np.zeros(3), np.zeros((2, 5)), [1.0, np.nan, 0.0, 0.0], np.zeros(4)])
+def test_quaternion_to_camera_rejects_bad_q(q):
+    """Wrong shape, NaN or the zero quaternion raise a ValueError naming q."""
+    with pytest.raises(ValueError, match=r"^q\b"):
+        quaternion_to_camera(q)
+
+
+def test_camera_to_quaternion_error_names_its_argument():
+    """A malformed camera array raises a ValueError naming R."""
+    with pytest.raises(ValueError, match=r"^R\b"):
+        camera_to_quaternion(np.zeros((3, 3)))
+
+
+# ---------------------------------------------------------------------------------------------------------
+# reprojection error and camera refinement (shapes fixed)
+
+
+def test_reprojection_error_matches_the_orthographic_data_term():
+    """reprojection_error equals OrthographicReprojection.value (masked sum of squares), NaN-safe."""
+    W, R, X = deforming_scene(seed=13)
+    F, P = W.shape[0], W.shape[1] // 2
+    rng = np.random.default_rng(13)
+    mask = random_visibility_mask(F, P, 0.3, random_state=13)
+    X_noisy = X + rng.standard_normal(X.shape)
+    expected = OrthographicReprojection(W, R, mask).value(X_noisy)
+    assert reprojection_error(hide(W, mask), mask, R, X_noisy) == pytest.approx(expected, rel=1e-12)
+    assert reprojection_error(W, None, R, X) < 1e-24 * np.sum(W**2)
+
+
+@pytest.mark.parametrize(("degrees", "missing"), [(5.0, 0.0), (30.0, 0.0), (60.0, 0.3)])
+def test_refine_cameras_returns_to_the_truth_with_true_shapes(degrees, missing):
+    """Perturbed true cameras, true (deforming) shapes fixed, noise-free tracks: the LM drives the error
+    to rounding level and the cameras back to the truth; its cost never increases."""
+    W, R_true, X = deforming_scene(seed=14)
+    F, P = W.shape[0], W.shape[1] // 2
+    rng = np.random.default_rng(14)
+    mask = random_visibility_mask(F, P, missing, random_state=14)
+    R0 = perturb_cameras(R_true, degrees, rng)
+    res = refine_cameras(hide(W, mask), mask, R0, X)
+    h = res.cost_history
+    assert h[0] == pytest.approx(reprojection_error(W, mask, R0, X), rel=1e-12)
+    # the batched LM only accepts decreasing frames and float addition is monotone: exactly non-increasing
+    assert np.all(np.diff(h) <= 0) and h.size == res.n_iter + 1
+    assert res.converged and res.cost == pytest.approx(res.frame_cost.sum(), rel=1e-12)
+    # zero-residual problem: Gauss-Newton converges quadratically, down to rounding (~eps^2 ||W||^2)
+    assert res.cost <= 1e-20 * np.sum(W**2)
+    # ||(R_f - R_true,f) S_f,obs||_F >= sigma_min(S_f,obs) ||R_f - R_true,f||_F, frame by frame
+    S = X.reshape(F, 3, P)
+    for f in range(F):
+        sigma_min = np.linalg.svd(S[f][:, mask[f]], compute_uv=False)[-1]
+        assert np.linalg.norm(res.R[f] - R_true[f]) <= np.sqrt(res.frame_cost[f]) / sigma_min + 1e-12
+    np.testing.assert_allclose(res.R, R_true, atol=1e-9)
+    assert row_gram_error(res.R) < 1e-13
+    np.testing.assert_allclose(quaternion_to_camera(res.q), res.R, atol=1e-13)
+
+
+def test_refine_cameras_on_noisy_tracks_matches_an_independent_solver():
+    """Noisy, 30% missing: the cost decreases monotonically to the per-frame minimum found by scipy's
+    least_squares on a rotation-vector parametrisation from the same start."""
+    W, R_true, X = deforming_scene(seed=15)
+    F, P = W.shape[0], W.shape[1] // 2
+    rng = np.random.default_rng(15)
+    mask = random_visibility_mask(F, P, 0.3, random_state=15)
+    W_noisy = W + 0.05 * rng.standard_normal(W.shape)
+    R0 = perturb_cameras(R_true, 20.0, rng)
+    res = refine_cameras(hide(W_noisy, mask), mask, R0, X)
+    assert np.all(np.diff(res.cost_history) <= 0) and res.cost < res.cost_history[0]
+    S, Wf = X.reshape(F, 3, P), W_noisy.reshape(F, 2, P)
+    for f in range(F):
+        obs = mask[f]
+
+        def residuals(v, f=f, obs=obs):
+            return (Wf[f][:, obs] - Rotation.from_rotvec(v).as_matrix()[:2] @ S[f][:, obs]).ravel()
+
+        v0 = Rotation.from_matrix(complete(R0[f : f + 1])[0]).as_rotvec()
+        ref = least_squares(residuals, v0, xtol=1e-15, ftol=1e-15, gtol=1e-15)
+        # both are minima of a smooth cost: equal costs to well within the solvers' tolerances
+        assert res.frame_cost[f] == pytest.approx(2 * ref.cost, rel=1e-8, abs=1e-14)
+
+
+def test_refine_cameras_keeps_the_camera_of_an_unobserved_frame():
+    """A frame without observations has a constant cost: its camera stays the (orthonormalised) start."""
+    W, R_true, X = deforming_scene(seed=16)
+    F, P = W.shape[0], W.shape[1] // 2
+    mask = np.ones((F, P), dtype=bool)
+    mask[3] = False
+    R0 = perturb_cameras(R_true, 10.0, np.random.default_rng(16)) * 1.1  # not orthonormal
+    res = refine_cameras(hide(W, mask), mask, R0, X)
+    assert np.all(np.isfinite(res.R))
+    np.testing.assert_allclose(res.R[3], nearest_orthonormal_rows(R0)[3], atol=1e-12)
+    others = np.arange(F) != 3
+    np.testing.assert_allclose(res.R[others], R_true[others], atol=1e-9)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# alternation of shapes and cameras
+
+
+def test_rigid_shape_step_is_the_least_squares_rigid_shape():
+    """Given cameras, the step returns, in every frame, the S minimising the masked reprojection error."""
+    W, R_true, X, _ = rigid_scene(seed=17)
+    F, P = W.shape[0], W.shape[1] // 2
+    rng = np.random.default_rng(17)
+    mask = random_visibility_mask(F, P, 0.3, random_state=17)
+    np.testing.assert_allclose(rigid_shape_step(hide(W, mask), mask)(R_true), X, atol=1e-9)
+    W_noisy = W + 0.1 * rng.standard_normal(W.shape)
+    R = perturb_cameras(R_true, 10.0, rng)
+    X_step = rigid_shape_step(hide(W_noisy, mask), mask)(R)
+    assert X_step.shape == (F, 3 * P) and np.all(X_step == X_step[0])
+    Wf = W_noisy.reshape(F, 2, P)
+    for j in range(P):  # brute force: per point, the stacked 2F' x 3 least-squares problem
+        seen = mask[:, j]
+        s_j = np.linalg.lstsq(R[seen].reshape(-1, 3), Wf[seen, :, j].ravel(), rcond=None)[0]
+        np.testing.assert_allclose(X_step[0].reshape(3, P)[:, j], s_j, atol=1e-9)
+
+
+@pytest.mark.parametrize("missing", [0.0, 0.3])
+def test_rigid_bundle_adjustment_reaches_zero_error_monotonically(missing):
+    """Rigid object, cameras perturbed by 10 degrees: shape step / camera LM alternation decreases the
+    reprojection error at every half-step (within rounding), to ~0, and recovers the cameras (up to gauge)."""
+    W, R_true, _, _ = rigid_scene(seed=18)
+    F, P = W.shape[0], W.shape[1] // 2
+    mask = random_visibility_mask(F, P, missing, random_state=18)
+    R0 = perturb_cameras(R_true, 10.0, np.random.default_rng(18))
+    Wh = hide(W, mask)
+    res = refine_cameras_and_shapes(Wh, mask, R0, rigid_shape_step(Wh, mask), max_outer=300, tol=1e-12)
+    assert res.n_outer == res.history.size == res.shape_history.size and res.energy_history is None
+    # e(R_{k-1}, X_k) <= e(R_{k-1}, X_{k-1}) (the shape step is a least-squares solve, up to its 1e-12
+    # relative ridge) and e(R_k, X_k) <= e(R_{k-1}, X_k) (the LM only accepts decreases); the slack is
+    # a few hundred ulps of the cost's scale ||W||^2
+    interleaved = np.column_stack([res.shape_history, res.history]).ravel()
+    scale = np.sum(W**2)
+    assert np.all(np.diff(interleaved) <= 1e-13 * scale)
+    assert res.shape_history[0] == pytest.approx(
+        reprojection_error(W, mask, nearest_orthonormal_rows(R0), rigid_shape_step(W, mask)(R0)), rel=1e-12
+    )
+    # noise-free rigid data: the global minimum is 0; the ridge of the shape step (relative 1e-12) leaves
+    # a floor ~(1e-12 cond)^2 ||W||^2, far below this bound
+    assert res.history[-1] <= 1e-14 * scale
+    assert reprojection_error(W, mask, res.R, res.X) == pytest.approx(res.history[-1], rel=1e-9, abs=1e-25)
+    assert camera_error(res.R, R_true) < 1e-6  # degrees
+
+
+def test_refine_cameras_and_shapes_penalty_callback_and_stopping():
+    """The callback sees k = 1..n_outer; energy_history = penalty(X_k) + history; tol stops the loop."""
+    W, R_true, _, _ = rigid_scene(seed=19)
+    R0 = perturb_cameras(R_true, 5.0, np.random.default_rng(19))
+    seen, shapes = [], []
+
+    def callback(k, R, X):
+        seen.append(k)
+        shapes.append(X)
+
+    res = refine_cameras_and_shapes(
+        W, None, R0, rigid_shape_step(W), max_outer=50, tol=1e-2, penalty=lambda X: 0.5, callback=callback
+    )
+    assert seen == list(range(1, res.n_outer + 1))
+    np.testing.assert_allclose(res.energy_history, 0.5 + res.history, rtol=1e-15)
+    np.testing.assert_array_equal(shapes[-1], res.X)
+    assert res.converged and res.n_outer < 50 and res.success
+    assert "relative decrease" in res.message
+    capped = refine_cameras_and_shapes(W, None, R0, rigid_shape_step(W), max_outer=2, tol=1e-12)
+    assert capped.n_outer == 2 and not capped.converged and "max_outer" in capped.message
+
+
+# ---------------------------------------------------------------------------------------------------------
+# evaluation up to the global gauge
+
+
+@pytest.mark.parametrize("det", [1, -1])
+def test_align_global_undoes_a_global_rotation_or_reflection(det):
+    """align_global(Q G + translations, G) = centred G exactly; it agrees with e3d(..., align=True)."""
+    _, _, X = deforming_scene(seed=20)
+    F, P = X.shape[0], X.shape[1] // 3
+    rng = np.random.default_rng(20 + det)
+    Q = random_orthogonal(rng, det)
+    shift = rng.standard_normal((F, 3, 1))
+    moved = (np.einsum("kl,flp->fkp", Q, X.reshape(F, 3, P)) + shift).reshape(F, 3 * P)
+    aligned = align_global(moved, X, P)
+    np.testing.assert_allclose(aligned, center_per_frame(X, P), atol=1e-10)
+    assert e3d(aligned, X, P) < 1e-10
+    noisy = moved + 0.1 * rng.standard_normal(moved.shape)
+    assert e3d(align_global(noisy, X, P), X, P) == pytest.approx(e3d(noisy, X, P, align=True), rel=1e-12)
+    if det == -1:  # a reflection cannot be undone by a rotation
+        assert e3d(align_global(moved, X, P, allow_reflection=False), X, P) > 0.1
+
+
+@pytest.mark.parametrize("det", [1, -1])
+def test_global_camera_alignment_and_camera_error(det):
+    """R_est = R_true Q0 gives back Q0 and a zero error; a known per-frame rotation gives its angle,
+    on both branches of the angle formula (chord for small angles, arccos for large)."""
+    _, R_true, _, _ = rigid_scene(seed=21)
+    rng = np.random.default_rng(21 + det)
+    Q0 = random_orthogonal(rng, det)
+    R_est = R_true @ Q0
+    Q = global_camera_alignment(R_est, R_true)
+    np.testing.assert_allclose(Q, Q0, atol=1e-12)
+    assert camera_error(R_est, R_true) < 1e-10 and camera_error(R_est, R_true, degrees=False) < 1e-12
+    Q_rot = global_camera_alignment(R_est, R_true, allow_reflection=False)
+    assert np.linalg.det(Q_rot) == pytest.approx(1.0)
+    for angle in (1e-7, 0.3, 2.5):
+        axes = rng.standard_normal((R_true.shape[0], 3))
+        turned = (
+            R_true
+            @ Rotation.from_rotvec(angle * axes / np.linalg.norm(axes, axis=1, keepdims=True)).as_matrix()
+        )
+        err = camera_error(turned, R_true, Q=np.eye(3), degrees=False)
+        assert err == pytest.approx(angle, rel=1e-8)
+    with pytest.raises(ValueError, match=r"^Q\b"):
+        camera_error(R_est, R_true, Q=2 * np.eye(3))
+
+
+# ---------------------------------------------------------------------------------------------------------
+# input validation
+
+
+def _bad_input_cases():
+    W, R, X, _ = rigid_scene(n_frames=6, n_points=8, seed=22)
+    F, P = 6, 8
+    W_nan = W.copy()
+    W_nan[2, 3] = np.nan
+    few = np.ones((F, P), dtype=bool)
+    few[4, 2:] = False  # frame 4 keeps 2 points
+    sparse = np.zeros((3, 10), dtype=bool)
+    sparse[:, :4] = True  # 3 frames x 4 points: 24 coordinates < 3P = 30 unknowns
+    W_sparse = rigid_scene(n_frames=3, n_points=10, seed=22)[0]
+    step = rigid_shape_step(W)
+    cases = [
+        ("odd columns", lambda: initialize_cameras(W[:, :-1]), "W2d"),
+        ("odd columns refine", lambda: refine_cameras(W[:, :-1], None, R, X), "W2d"),
+        ("NaN observed", lambda: initialize_cameras(W_nan), "W2d"),
+        ("NaN observed alternation", lambda: refine_cameras_and_shapes(W_nan, None, R, step), "W2d"),
+        ("not numeric", lambda: initialize_cameras("tracks"), "W2d"),
+        ("mask shape", lambda: initialize_cameras(W, few[:, :-1]), "mask"),
+        ("< 3 points init", lambda: initialize_cameras(W, few), "mask"),
+        ("< 3 points shape step", lambda: rigid_shape_step(W, few), "mask"),
+        ("< 3 points alternation", lambda: refine_cameras_and_shapes(W, few, R, step), "mask"),
+        ("too few observations", lambda: rigid_factorization(W_sparse, sparse), "mask"),
+        ("R0 not 2x3", lambda: refine_cameras(W, None, R[:, :, :2], X), "R0"),
+        ("R0 frame count", lambda: refine_cameras(W, None, R[:-1], X), "R0"),
+        ("R0 stacked", lambda: refine_cameras_and_shapes(W, None, R.reshape(-1, 3), step), "R0"),
+        ("X shape", lambda: refine_cameras(W, None, R, X[:, :-1]), "X"),
+        ("max_iter", lambda: refine_cameras(W, None, R, X, max_iter=0), "max_iter"),
+        ("shape_step not callable", lambda: refine_cameras_and_shapes(W, None, R, "tnh"), "shape_step"),
+        (
+            "shape_step output",
+            lambda: refine_cameras_and_shapes(W, None, R, lambda R: X[:, :-1]),
+            "shape_step",
+        ),
+        ("penalty", lambda: refine_cameras_and_shapes(W, None, R, step, penalty=1.0), "penalty"),
+        ("M shape", lambda: metric_upgrade(np.zeros((4, 3, 3))), "M"),
+        ("A shape", lambda: nearest_orthonormal_rows(np.zeros((2, 3))), "A"),
+    ]
+    for v in (0, -1, 2.5, True, None):
+        call = lambda v=v: refine_cameras_and_shapes(W, None, R, step, max_outer=v)  # noqa: E731
+        cases.append((f"max_outer={v!r}", call, "max_outer"))
+    return [pytest.param(call, name, id=label) for label, call, name in cases]
+
+
+@pytest.mark.parametrize(("call", "name"), _bad_input_cases())
+def test_bad_input_raises_value_error_naming_the_argument(call, name):
+    """Malformed input raises a ValueError whose message starts with the offending argument's name."""
+    with pytest.raises(ValueError, match=rf"^{name}\b"):
+        call()
+
+
+def test_nan_at_unobserved_entries_is_ignored():
+    """NaN where the mask is False does not leak into any result (cameras compared up to the gauge, which
+    the missing-data factorisation fixes only up to rounding: it is not bitwise reproducible)."""
+    W, R_true, X, _ = rigid_scene(seed=23)
+    F, P = W.shape[0], W.shape[1] // 2
+    mask = random_visibility_mask(F, P, 0.3, random_state=23)
+    Wh = hide(W, mask)
+    W0 = np.where(np.concatenate([mask, mask], axis=1), W, 0.0)
+    R_nan = initialize_cameras(Wh, mask)
+    assert np.all(np.isfinite(R_nan)) and camera_error(R_nan, R_true) < 1e-6
+    np.testing.assert_allclose(
+        rigid_shape_step(Wh, mask)(R_true), rigid_shape_step(W0, mask)(R_true), atol=1e-12
+    )
+    assert reprojection_error(Wh, mask, R_true, X) == reprojection_error(W0, mask, R_true, X)
+    res = refine_cameras(Wh, mask, perturb_cameras(R_true, 10.0, np.random.default_rng(23)), X)
+    assert np.all(np.isfinite(res.cost_history)) and res.cost <= 1e-20 * np.sum(W**2)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# real data (CMU mocap, Akhter et al.)
+
+
+@pytest.mark.realdata
+def test_real_data_pickup_camera_initialisation_and_rigid_refinement(data_dir):
+    """pickup, every 10th frame: rigid-factorisation cameras are far better than chance, and the rigid
+    bundle adjustment from them never increases the reprojection error."""
+    seq = load_mocap("pickup", data_dir).subsample(10)
+    F, P = seq.n_frames, seq.n_points
+    assert (F, P) == (36, 41)
+    W = stack_to_rows(seq.W, 2)
+    R0 = initialize_cameras(W)
+    assert row_gram_error(R0) < 1e-10
+    # Measured: 27.39 degrees mean camera error (global alignment with reflection). pickup deforms a lot
+    # (the centred shapes differ from their mean by ~25% in Frobenius norm), so the rank-3 model absorbs
+    # part of the body motion into the cameras and rigid factorisation is only approximate. Bound at 2x
+    # the measured value; for reference, random cameras score ~105-115 degrees and one fixed camera 90.
+    error = camera_error(R0, seq.R)
+    assert error < 55.0
+    # Only the reprojection error is asserted below: the rigid bundle adjustment fits the tracks better
+    # but moves these cameras further from the truth (measured 32.7 degrees after it).
+    step = rigid_shape_step(W)
+    res = refine_cameras_and_shapes(W, None, R0, step)
+    start = reprojection_error(W, None, R0, step(R0))  # measured 214.4 (track unit squared)
+    assert res.shape_history[0] == pytest.approx(start, rel=1e-12)
+    interleaved = np.column_stack([res.shape_history, res.history]).ravel()
+    assert np.all(np.diff(interleaved) <= 1e-13 * np.sum(W**2))
+    assert res.history[-1] <= start  # measured 132.7 after 8 outer iterations
+    assert reprojection_error(W, None, res.R, res.X) == pytest.approx(res.history[-1], rel=1e-9)
