@@ -21,6 +21,7 @@ include: "workflow/rules/nrsfm.smk"
 include: "workflow/rules/tables.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/notebooks.smk"
+include: "workflow/rules/report.smk"
 
 
 rule all:
@@ -31,3 +32,4 @@ rule all:
         rules.table2.output,
         rules.table3.output,
         rules.fig1.output,
+        rules.report.output,

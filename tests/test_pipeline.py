@@ -29,6 +29,7 @@ def quick_run(tmp_path_factory):
         "table2",
         "table3",
         "fig1",
+        "report",
         "-c",
         "2",
         "--configfile",
@@ -65,6 +66,7 @@ def test_second_run_has_nothing_to_do(quick_run):
         "table2",
         "table3",
         "fig1",
+        "report",
         "-n",
         "--configfile",
         str(REPO / "config/quick.yaml"),
@@ -150,3 +152,28 @@ def test_changing_a_table2_parameter_reruns_table2_only(quick_run, tmp_path):
     planned = {j for j in jobs if j.startswith(("table", "fig"))}
     assert {"table2_run", "table2_table"} <= planned
     assert not {j for j in planned if j.startswith(("table1", "table3", "fig"))}, proc.stdout[-3000:]
+
+
+@pytest.mark.pipeline
+def test_scorecard_counts_match_the_tables(quick_run):
+    """The report's headline counts, recomputed from the table CSVs with the bands' definitions."""
+    bands = yaml.safe_load((REPO / "config/quick.yaml").read_text())["scorecard"]
+    scored = pd.read_csv(quick_run / "results/scorecard.csv")
+    published = 0
+    for name in ("table1", "table2", "table3"):
+        table = pd.read_csv(quick_run / f"results/tables/{name}.csv")
+        headline = table[table["paper"].notna() & ~table["metric"].str.endswith(("_sd", "_min", "_max"))]
+        published += len(headline)
+        # spot-check the rel band of Table 1 against the CSV directly
+        if name == "table1":
+            rows = headline[headline["metric"] == "manifold_error"]
+            expected = ((rows["value"] - rows["paper"]).abs() <= 0.05 * rows["paper"]).tolist()
+            got = scored[(scored["table"] == name) & (scored["metric"] == "manifold_error")]["inside"]
+            assert got.astype(bool).tolist() == expected
+    assert len(scored) == published
+    banded = scored[scored["inside"].notna()]
+    inside = int(banded["inside"].astype(bool).sum())
+    assert len(banded) >= sum(1 for b in bands if b["kind"] != "none")  # every banded rule scores a cell
+    report = (quick_run / "results/report.md").read_text()
+    assert f"**{inside} of {len(banded)} banded cells inside their band**; {published} numbers" in report
+    assert "![fig3](figures/fig3.png)" in report and "git commit:" in report

@@ -1,0 +1,24 @@
+# The reproduction scorecard: every published number, ours beside it, its band, and provenance.
+
+
+rule report:
+    input:
+        tables=expand("results/tables/{name}.csv", name=["table1", "table2", "table3"]),
+        figures=["results/figures/fig3.png", "results/figures/fig1.png"],
+        data=oil_files("train")
+        + oil_files("test")
+        + expand(f"{DATA_DIR}/nrsfm/{{seq}}.mat", seq=T3["sequences"]),
+    output:
+        md="results/report.md",
+        csv="results/scorecard.csv",
+    params:
+        bands=config["scorecard"],
+        config=config,
+        repo=str(REPO),
+    conda:
+        "../envs/nldr.yaml"
+    log:
+        "logs/report.log",
+    localrule: True
+    script:
+        "../scripts/report.py"
