@@ -15,8 +15,9 @@ $(BIN)/.installed: pyproject.toml
 
 setup: $(BIN)/.installed
 
-reproduce: setup  ## every table and figure on the paper's protocol
+reproduce: setup  ## every table and figure on the paper's protocol, the scorecard and the HTML report
 	$(BIN)/snakemake --cores $(CORES)
+	$(BIN)/snakemake --report results/report.html
 
 quick: setup  ## the same pipeline on the small protocol (config/quick.yaml)
 	$(BIN)/snakemake --cores $(CORES) --configfile config/quick.yaml

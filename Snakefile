@@ -11,6 +11,9 @@ min_version("9.0")
 configfile: str(Path(workflow.basedir) / "config" / "config.yaml")
 
 
+report: "workflow/report/workflow.rst"
+
+
 validate(config, "workflow/schemas/config.schema.yaml")
 
 
@@ -32,4 +35,4 @@ rule all:
         rules.table2.output,
         rules.table3.output,
         rules.fig1.output,
-        rules.report.output,
+        rules.scorecard.output,

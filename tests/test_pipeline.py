@@ -29,7 +29,7 @@ def quick_run(tmp_path_factory):
         "table2",
         "table3",
         "fig1",
-        "report",
+        "scorecard",
         "-c",
         "2",
         "--configfile",
@@ -66,7 +66,7 @@ def test_second_run_has_nothing_to_do(quick_run):
         "table2",
         "table3",
         "fig1",
-        "report",
+        "scorecard",
         "-n",
         "--configfile",
         str(REPO / "config/quick.yaml"),
@@ -177,3 +177,14 @@ def test_scorecard_counts_match_the_tables(quick_run):
     report = (quick_run / "results/report.md").read_text()
     assert f"**{inside} of {len(banded)} banded cells inside their band**; {published} numbers" in report
     assert "![fig3](figures/fig3.png)" in report and "git commit:" in report
+
+
+@pytest.mark.pipeline
+def test_html_report_has_every_table_and_figure(quick_run):
+    proc = run_snakemake(
+        quick_run, "--report", "results/report.html", "--configfile", str(REPO / "config/quick.yaml")
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    html = (quick_run / "results/report.html").read_text(errors="replace")
+    for name in ("table1.md", "table2.md", "table3.md", "fig1.png", "fig3.png", "report.md"):
+        assert name in html, name

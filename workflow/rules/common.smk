@@ -24,7 +24,10 @@ def table1_taus():
 
 
 def table_outputs(name):
-    return multiext(f"results/tables/{name}", ".csv", ".md", ".tex")
+    """CSV (canonical), Markdown (shown in the HTML report, caption workflow/report/<name>.rst), LaTeX."""
+    # (a line may not start with `report`: Snakemake's parser would take it for the keyword)
+    markdown = report(f"results/tables/{name}.md", caption=f"../report/{name}.rst", category="Tables")
+    return [f"results/tables/{name}.csv", markdown, f"results/tables/{name}.tex"]
 
 
 def data_dir_of(path):

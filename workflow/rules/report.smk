@@ -1,7 +1,7 @@
 # The reproduction scorecard: every published number, ours beside it, its band, and provenance.
 
 
-rule report:
+rule scorecard:
     input:
         tables=expand("results/tables/{name}.csv", name=["table1", "table2", "table3"]),
         figures=["results/figures/fig3.png", "results/figures/fig1.png"],
@@ -9,7 +9,7 @@ rule report:
         + oil_files("test")
         + expand(f"{DATA_DIR}/nrsfm/{{seq}}.mat", seq=T3["sequences"]),
     output:
-        md="results/report.md",
+        md=report("results/report.md", caption="../report/scorecard.rst", category="Scorecard"),
         csv="results/scorecard.csv",
     params:
         bands=config["scorecard"],
