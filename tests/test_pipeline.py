@@ -188,3 +188,27 @@ def test_html_report_has_every_table_and_figure(quick_run):
     html = (quick_run / "results/report.html").read_text(errors="replace")
     for name in ("table1.md", "table2.md", "table3.md", "fig1.png", "fig3.png", "report.md"):
         assert name in html, name
+
+
+@pytest.mark.pipeline
+@pytest.mark.parametrize("profile", ["default", "slurm"])
+def test_every_job_is_planned_with_each_profile(tmp_path, profile):
+    """A dry run of the full protocol from nothing lists every job of every table with either profile."""
+    proc = run_snakemake(tmp_path, "-n", "--profile", str(REPO / "profiles" / profile))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    config = yaml.safe_load((REPO / "config/config.yaml").read_text())
+    t1, t2, t3 = config["table1"], config["table2"], config["table3"]
+    expected = {
+        "table1_run": len(t1["noise_std"]) * t1["n_draws"],
+        "table2_run": len(t2["p"]) * t2["n_masks"],
+        "table3_run": len(t3["sequences"]) * (1 + t3["n_seeds"]),
+        "scorecard": 1,
+        "all": 1,
+    }
+    counts = {}
+    for line in proc.stdout.splitlines():
+        parts = line.split()
+        if len(parts) == 2 and parts[1].isdigit():
+            counts.setdefault(parts[0], int(parts[1]))
+    for rule, n in expected.items():
+        assert counts.get(rule) == n, (rule, counts)
