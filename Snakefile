@@ -36,3 +36,4 @@ rule all:
         rules.table3.output,
         rules.fig1.output,
         rules.scorecard.output,
+        rules.overview.output,

@@ -30,6 +30,7 @@ def quick_run(tmp_path_factory):
         "table3",
         "fig1",
         "scorecard",
+        "overview",
         "-c",
         "2",
         "--configfile",
@@ -67,6 +68,7 @@ def test_second_run_has_nothing_to_do(quick_run):
         "table3",
         "fig1",
         "scorecard",
+        "overview",
         "-n",
         "--configfile",
         str(REPO / "config/quick.yaml"),
@@ -177,6 +179,8 @@ def test_scorecard_counts_match_the_tables(quick_run):
     report = (quick_run / "results/report.md").read_text()
     assert f"**{inside} of {len(banded)} banded cells inside their band**; {published} numbers" in report
     assert "![fig3](figures/fig3.png)" in report and "git commit:" in report
+    overview = (quick_run / "results/notebooks/00_overview.ipynb").read_text()
+    assert f"{inside} of {len(banded)} banded cells inside their band" in overview
 
 
 @pytest.mark.pipeline

@@ -22,3 +22,19 @@ rule scorecard:
     localrule: True
     script:
         "../scripts/report.py"
+
+
+rule overview:
+    input:
+        notebook=str(REPO / "notebooks" / "00_overview.py"),
+        scorecard="results/scorecard.csv",
+        report="results/report.md",
+    output:
+        "results/notebooks/00_overview.ipynb",
+    conda:
+        "../envs/nldr.yaml"
+    log:
+        "logs/notebooks/overview.log",
+    localrule: True
+    script:
+        "../scripts/run_notebook.py"

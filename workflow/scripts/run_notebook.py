@@ -4,6 +4,7 @@ The notebook's ``parameters`` cell is overridden with the rule's named inputs (a
 the executed copy shows exactly the files this run produced.
 """
 
+import os
 from pathlib import Path
 
 import jupytext
@@ -18,6 +19,8 @@ parameters = {
     if key != "notebook"
 }
 notebook = jupytext.read(sm.input.notebook)
+# A non-interactive MPLBACKEND (CI sets Agg) would stop the kernel from showing figures inline.
+os.environ.pop("MPLBACKEND", None)
 log.info("executing %s with %s", sm.input.notebook, sorted(parameters))
 with atomic_path(sm.output[0]) as tmp:
     papermill.execute_notebook(
