@@ -1,0 +1,211 @@
+"""Reliability: bad configs stop before any job, an interrupted run finishes with the same tables, and
+numerical edge cases never let NaN or infinity out of a solver."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import yaml
+from conftest import REPO
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from nldr.data_terms import MaskedLeastSquares
+from nldr.kernels import rbf_kernel
+from nldr.nrsfm import OrthographicReprojection, TraceNormHeuristic
+from nldr.regularizer import minimize_regularized
+from nldr.robust_kpca import closed_form_rank_penalty
+
+SNAKEMAKE = [sys.executable, "-m", "snakemake", "-s", str(REPO / "Snakefile")]
+QUICK = str(REPO / "config/quick.yaml")
+
+
+def quick_config():
+    return yaml.safe_load((REPO / "config/quick.yaml").read_text())
+
+
+# --------------------------------------------------------------------------------------------------
+# Bad configuration: rejected by the schema, naming the key, before any job runs
+
+
+def _set(config, path, value):
+    *parents, last = path
+    node = config
+    for key in parents:
+        node = node[key]
+    node[last] = value
+
+
+@pytest.mark.pipeline
+@pytest.mark.parametrize(
+    "path, value, named",
+    [
+        (("table1", "gamma"), "wide", "gamma"),  # wrong type
+        (("table2", "methods", "Ours", "tau"), -0.1, "tau"),  # negative tau
+        (("table2", "methods", "Ours", "rho0"), 0.0, "rho0"),  # rho must be positive
+        (("table3", "sequences"), ["drink", "walking"], "sequences"),  # unknown sequence
+        (("table2", "p"), [0.1, 1.5], "p"),  # a probability outside (0, 1)
+        (("table3", "missing_fraction"), 1.0, "missing_fraction"),
+        (("table2", "n_mask"), 3, "n_mask"),  # a typo in a key
+        (("scorecard",), [{"table": "table1", "metric": "e", "kind": "close", "doc": "x"}], "kind"),
+    ],
+)
+def test_bad_config_is_rejected_naming_the_key_before_any_job(tmp_path, path, value, named):
+    config = quick_config()
+    _set(config, path, value)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump(config, sort_keys=False))
+    proc = subprocess.run(
+        [*SNAKEMAKE, "-d", str(tmp_path), "-c", "1", "--configfile", str(bad)],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
+    out = proc.stdout + proc.stderr
+    assert proc.returncode != 0
+    assert "Error validating config file" in out and named in out, out[-2000:]
+    assert not (tmp_path / "results").exists() and not (tmp_path / "resources").exists()
+
+
+# --------------------------------------------------------------------------------------------------
+# Interruption: a run killed inside a heavy job, started again, gives the tables of a clean run
+
+
+@pytest.mark.pipeline
+def test_run_killed_in_a_heavy_job_finishes_with_the_same_table(tmp_path):
+    targets = ["table3_table", "-c", "1", "--configfile", QUICK]
+    interrupted, clean = tmp_path / "interrupted", tmp_path / "clean"
+    cmd = [*SNAKEMAKE, "-d", str(interrupted), *targets]
+    proc = subprocess.Popen(
+        cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
+    logs = interrupted / "logs/table3_run"
+    deadline = time.monotonic() + 120
+    try:
+        # wait until the first NRSfM job has started and is inside its solver
+        while time.monotonic() < deadline and not any(
+            "e3d=" in p.read_text() for p in logs.glob("*.log") if p.is_file()
+        ):
+            assert proc.poll() is None, "the run ended before it could be interrupted"
+            time.sleep(0.2)
+        assert time.monotonic() < deadline, "no table3_run job started within 2 minutes"
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    runs = interrupted / "results/runs/table3"
+    done = {p.name for p in runs.glob("*.csv")}
+    assert len(done) < 2 * len(quick_config()["table3"]["sequences"])  # it really was cut short
+    assert not (interrupted / "results/tables/table3.csv").exists()
+
+    # SIGKILL leaves Snakemake's lock behind: the next run says so and names the fix
+    locked = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
+    assert locked.returncode != 0 and "--unlock" in locked.stdout + locked.stderr
+    unlock = subprocess.run([*SNAKEMAKE, "-d", str(interrupted), "--unlock"], cwd=REPO, capture_output=True)
+    assert unlock.returncode == 0
+    again = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr[-3000:]
+    reference = subprocess.run(
+        [*SNAKEMAKE, "-d", str(clean), *targets], cwd=REPO, capture_output=True, text=True
+    )
+    assert reference.returncode == 0, reference.stderr[-3000:]
+    for name in ("table3.csv", "table3.md", "table3.tex"):
+        first = (interrupted / "results/tables" / name).read_bytes()
+        assert first == (clean / "results/tables" / name).read_bytes(), name
+
+
+# --------------------------------------------------------------------------------------------------
+# Numerical edge cases: no NaN or infinity leaves a solver
+
+
+def _finite(*arrays):
+    return all(np.all(np.isfinite(a)) for a in arrays)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    n_unique=st.integers(2, 6),
+    repeats=st.integers(2, 4),
+    log_gamma=st.floats(-6, 4),
+    tau=st.floats(1e-3, 10.0),
+    seed=st.integers(0, 2**16),
+)
+def test_duplicate_points_and_extreme_widths_stay_finite(n_unique, repeats, log_gamma, tau, seed):
+    """Repeated samples (zero distances, a rank-deficient kernel) with gamma from 1e-6 to 1e4."""
+    rng = np.random.default_rng(seed)
+    W = np.repeat(rng.standard_normal((n_unique, 3)), repeats, axis=0)
+    mask = rng.random(W.shape) > 0.3
+    mask[0] = True  # every column observed somewhere
+    res = minimize_regularized(
+        MaskedLeastSquares(W, mask), np.where(mask, W, 0.0), gamma=10.0**log_gamma, tau=tau, rho_max=100.0
+    )
+    assert _finite(res.S, res.C, res.energy_history)
+    assert isinstance(res.converged, bool) and res.message
+
+
+@settings(max_examples=40, deadline=None)
+@given(lam=st.floats(1e-6, 1e3), ratio=st.floats(1e-3, 1e3), seed=st.integers(0, 2**16))
+def test_eigenvalues_at_the_cubic_threshold_are_handled(lam, ratio, seed):
+    """An eigenvalue placed exactly where l* jumps from 0 to a positive root (both candidates tie).
+
+    With rho = 1, phi(l) = (lam - l^2)^2 / 2 + tau l. A positive stationary point satisfies
+    l^3 - lam l + tau / 2 = 0; it ties with l = 0 when l^3 - 2 lam l + 2 tau = 0. Together:
+    l = 3 tau / (2 lam) and tau^2 = 8 lam^3 / 27, i.e. tau = (2 lam / 3)^(3/2).
+    """
+    rng = np.random.default_rng(seed)
+    Q, _ = np.linalg.qr(rng.standard_normal((5, 5)))
+    spectrum = np.array([lam, lam * ratio, 0.0, lam / 2, 2 * lam])
+    K = (Q * spectrum) @ Q.T
+    K = (K + K.T) / 2
+    tau = (2.0 * lam / 3.0) ** 1.5
+    C = closed_form_rank_penalty(K, tau=tau, rho=1.0)
+    assert _finite(C)
+    energy = tau * np.linalg.svd(C, compute_uv=False).sum() + 0.5 * np.sum((K - C.T @ C) ** 2)
+    # brute force per eigenvalue: l = 0 or any l on a fine grid up to sqrt(2 max(lam_i, 0))
+    best = 0.0
+    for s in spectrum:
+        grid = np.linspace(0.0, np.sqrt(2 * max(s, 0.0)) + 1e-12, 20001)
+        best += np.min((s - grid**2) ** 2 / 2 + tau * grid)
+    assert energy <= best * (1 + 1e-9) + 1e-12
+
+
+def test_rank_deficient_and_nearly_singular_kernels():
+    rng = np.random.default_rng(0)
+    X = rng.standard_normal((30, 2))
+    for K in (
+        np.ones((30, 30)),
+        rbf_kernel(X, gamma=1e-9),
+        rbf_kernel(np.repeat(X[:5], 6, axis=0), gamma=0.5),
+    ):
+        for tau in (1e-6, 1.0, 1e3):
+            assert _finite(closed_form_rank_penalty(K, tau=tau, rho=1.0))
+
+
+def test_all_missing_rows_are_filled_finitely():
+    rng = np.random.default_rng(1)
+    t = rng.uniform(0, 2 * np.pi, 40)
+    W = np.c_[np.cos(t), np.sin(t), t / 3]
+    mask = np.ones(W.shape, dtype=bool)
+    mask[[3, 17, 29]] = False  # three rows with no observed entry
+    res = minimize_regularized(MaskedLeastSquares(W, mask), np.where(mask, W, 0.0), gamma=1.0, tau=0.1)
+    assert _finite(res.S) and res.converged
+
+
+def test_a_frame_with_no_observed_point_stays_finite():
+    rng = np.random.default_rng(2)
+    F, P = 12, 8
+    basis = rng.standard_normal((2, 3 * P))
+    X = rng.standard_normal((F, 2)) @ basis + rng.standard_normal(3 * P)
+    Q = np.linalg.qr(rng.standard_normal((F, 3, 3)))[0]
+    R = Q[:, :2, :]
+    W2d = np.einsum("fck,fkp->fcp", R, X.reshape(F, 3, P)).reshape(F, 2 * P)
+    mask = rng.random((F, P)) > 0.3
+    mask[5] = False  # frame 5 shows nothing
+    tnh = TraceNormHeuristic(W2d, R, mask).solve(1e-2)
+    res = minimize_regularized(
+        OrthographicReprojection(W2d, R, mask), tnh.X, gamma=0.1, tau=1e-4, rho0=1e-3, rho_max=10.0
+    )
+    assert _finite(tnh.X, res.S)
