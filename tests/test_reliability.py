@@ -209,3 +209,33 @@ def test_a_frame_with_no_observed_point_stays_finite():
         OrthographicReprojection(W2d, R, mask), tnh.X, gamma=0.1, tau=1e-4, rho0=1e-3, rho_max=10.0
     )
     assert _finite(tnh.X, res.S)
+
+
+@pytest.mark.pipeline
+def test_corrupt_mirror_stops_the_pipeline_before_results(tmp_path, data_dir):
+    """A mirror file with one byte flipped: the run fails naming the file and its sha256, and nothing
+    is written under results/ (nor a bad copy under resources/)."""
+    from nldr.datasets import FILES, fetch
+
+    mirror = tmp_path / "mirror"
+    for rel in ("oil/DataTrn.txt", "oil/DataTrnLbls.txt"):
+        (mirror / rel).parent.mkdir(parents=True, exist_ok=True)
+        (mirror / rel).write_bytes(fetch(rel, data_dir).read_bytes())
+    target = mirror / "oil/DataTrn.txt"
+    data = bytearray(target.read_bytes())
+    data[200] ^= 0x01
+    target.write_bytes(bytes(data))
+    work = tmp_path / "work"
+    env = {**os.environ, "NLDR_DATA_MIRROR": str(mirror)}
+    proc = subprocess.run(
+        [*SNAKEMAKE, "-d", str(work), "-c", "1", "table2_table", "--configfile", QUICK],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        env=env,
+    )
+    out = proc.stdout + proc.stderr
+    assert proc.returncode != 0
+    assert "oil/DataTrn.txt" in out and FILES["oil/DataTrn.txt"].sha256 in out and "NLDR_DATA_MIRROR" in out
+    assert not (work / "results").exists()
+    assert not (work / "resources/oil/DataTrn.txt").exists()
