@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
@@ -25,3 +26,10 @@ def rng():
     import numpy as np
 
     return np.random.default_rng(12345)
+
+
+def random_rotation(rng) -> np.ndarray:
+    """A uniformly random 3x3 rotation (det +1) from a seeded numpy Generator."""
+    Q, Rq = np.linalg.qr(rng.standard_normal((3, 3)))
+    Q = Q * np.sign(np.diag(Rq))
+    return Q if np.linalg.det(Q) > 0 else -Q

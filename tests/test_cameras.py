@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import random_rotation
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
@@ -35,12 +36,6 @@ from nldr.nrsfm.reprojection import OrthographicReprojection
 
 # ---------------------------------------------------------------------------------------------------------
 # helpers
-
-
-def random_rotation(rng) -> np.ndarray:
-    Q, Rq = np.linalg.qr(rng.standard_normal((3, 3)))
-    Q = Q * np.sign(np.diag(Rq))
-    return Q if np.linalg.det(Q) > 0 else -Q
 
 
 def random_orthogonal(rng, det: int) -> np.ndarray:

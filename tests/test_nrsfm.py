@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import random_rotation
 
 from nldr.data_terms import DataTerm
 from nldr.nrsfm.layout import (
@@ -22,12 +23,6 @@ from nldr.nrsfm.tnh import TNHSolveError, TraceNormHeuristic, trace_norm_heurist
 
 # ---------------------------------------------------------------------------------------------------------
 # helpers
-
-
-def random_rotation(rng) -> np.ndarray:
-    Q, Rq = np.linalg.qr(rng.standard_normal((3, 3)))
-    Q = Q * np.sign(np.diag(Rq))
-    return Q if np.linalg.det(Q) > 0 else -Q
 
 
 def synthetic_sequence(n_frames=12, n_points=9, rank=2, seed=0):

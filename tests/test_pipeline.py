@@ -12,6 +12,8 @@ from conftest import REPO
 from nldr.tables import TABLE_COLUMNS
 
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+# every target of the quick protocol (the default target `all` is the same set)
+TARGETS = ["table1", "fig3", "table2", "table3", "fig1", "scorecard", "overview"]
 
 
 def run_snakemake(workdir, *args):
@@ -24,13 +26,7 @@ def quick_run(tmp_path_factory):
     workdir = tmp_path_factory.mktemp("pipeline")
     proc = run_snakemake(
         workdir,
-        "table1",
-        "fig3",
-        "table2",
-        "table3",
-        "fig1",
-        "scorecard",
-        "overview",
+        *TARGETS,
         "-c",
         "2",
         "--configfile",
@@ -62,13 +58,7 @@ def test_table1_target_builds_table_figure_and_notebook(quick_run):
 def test_second_run_has_nothing_to_do(quick_run):
     proc = run_snakemake(
         quick_run,
-        "table1",
-        "fig3",
-        "table2",
-        "table3",
-        "fig1",
-        "scorecard",
-        "overview",
+        *TARGETS,
         "-n",
         "--configfile",
         str(REPO / "config/quick.yaml"),
