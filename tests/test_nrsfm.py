@@ -18,6 +18,7 @@ from nldr.nrsfm.layout import (
     stack_to_rows,
 )
 from nldr.nrsfm.metrics import center_per_frame, e3d, e3d_per_frame, ground_truth_sigma, procrustes_rotation
+from nldr.nrsfm.proximal import tnh_proximal
 from nldr.nrsfm.reprojection import OrthographicReprojection
 from nldr.nrsfm.tnh import TNHSolveError, TraceNormHeuristic, trace_norm_heuristic
 
@@ -358,3 +359,46 @@ def test_real_data_tnh_exact_fit_pickup():
     result = trace_norm_heuristic(stack_to_rows(seq.W, 2), seq.R)
     # paper Table 3: 0.0487; this implementation measures 0.0475 (benchmarks/bench_tnh.py)
     assert e3d(result.X, stack_to_rows(seq.S), P) == pytest.approx(0.0475, abs=5e-4)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# penalised TNH by proximal gradient
+
+
+@pytest.mark.parametrize("tau", [0.1, 1.0, 10.0])
+def test_proximal_tnh_meets_the_optimality_condition_and_matches_cvxpy(tau):
+    """At the optimum -grad g(X) lies in tau * subdifferential of ||X||_*: with X = U S V^T,
+    U^T (-grad) V = tau I and the part of -grad outside the row/column spaces has spectral norm <= tau."""
+    X, W, R = synthetic_sequence(n_frames=12, n_points=9, rank=3, seed=21)
+    F, P = X.shape[0], X.shape[1] // 3
+    mask = random_visibility_mask(F, P, 0.3, random_state=21)
+    noisy = W + 0.05 * np.random.default_rng(21).standard_normal(W.shape)
+    res = tnh_proximal(noisy, R, mask, tau=tau, tol=1e-14, max_iter=50_000)
+    assert res.converged
+    term = OrthographicReprojection(noisy, R, mask)
+    assert res.objective == pytest.approx(penalised_objective(term, res.X, tau), rel=1e-12)
+    minus_grad = -term.gradient(res.X)
+    U, s, Vt = np.linalg.svd(res.X, full_matrices=False)
+    k = int(np.sum(s > 1e-8 * s[0]))
+    U, Vt = U[:, :k], Vt[:k]
+    np.testing.assert_allclose(U.T @ minus_grad @ Vt.T, tau * np.eye(k), atol=1e-5 * max(tau, 1))
+    outside = (
+        minus_grad - U @ (U.T @ minus_grad) - (minus_grad @ Vt.T) @ Vt + U @ (U.T @ minus_grad @ Vt.T) @ Vt
+    )
+    assert np.linalg.norm(outside, 2) <= tau * (1 + 1e-5)
+    reference = TraceNormHeuristic(noisy, R, mask).solve(tau, solver="CLARABEL")
+    assert res.objective <= reference.objective * (1 + 1e-6)
+    assert res.objective == pytest.approx(penalised_objective(term, reference.X, tau), rel=1e-5)
+
+
+def test_proximal_tnh_warm_start_and_errors():
+    X, W, R = synthetic_sequence(n_frames=8, n_points=6, rank=2, seed=22)
+    cold = tnh_proximal(W, R, tau=1.0, tol=1e-12)
+    warm = tnh_proximal(W, R, tau=1.0, X0=cold.X, tol=1e-12)
+    assert warm.n_iter < cold.n_iter and warm.objective <= cold.objective * (1 + 1e-12)
+    with pytest.raises(ValueError, match="tau"):
+        tnh_proximal(W, R, tau=0.0)
+    with pytest.raises(ValueError, match="X0"):
+        tnh_proximal(W, R, tau=1.0, X0=np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="W2d"):
+        tnh_proximal(W[:, :-1], R, tau=1.0)
