@@ -35,5 +35,6 @@ rule all:
         rules.table2.output,
         rules.table3.output,
         rules.fig1.output,
+        rules.table4.output,
         rules.scorecard.output,
         rules.overview.output,

@@ -4,6 +4,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 import yaml
@@ -13,7 +14,7 @@ from nldr.tables import TABLE_COLUMNS
 
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 # every target of the quick protocol (the default target `all` is the same set)
-TARGETS = ["table1", "fig3", "table2", "table3", "fig1", "scorecard", "overview"]
+TARGETS = ["table1", "fig3", "table2", "table3", "fig1", "table4", "scorecard", "overview"]
 
 
 def run_snakemake(workdir, *args):
@@ -121,11 +122,11 @@ def test_table3_target_has_tnh_and_both_widths_beside_the_paper(quick_run):
 def test_a_second_clean_run_on_one_core_gives_byte_identical_tables(quick_run, tmp_path):
     """Every random draw is seeded and BLAS is pinned per job, so the tables may not depend on the run
     or on how many jobs ran side by side (the first run used 2 cores, this one uses 1)."""
-    targets = ["table1_table", "table2_table", "table3_table"]
+    targets = ["table1_table", "table2_table", "table3_table", "table4_table"]
     proc = run_snakemake(tmp_path, *targets, "-c", "1", "--configfile", str(REPO / "config/quick.yaml"))
     assert proc.returncode == 0, proc.stderr[-4000:]
     tables = sorted((quick_run / "results/tables").glob("table*.*"))
-    assert len(tables) == 9  # three tables, each as csv, md and tex
+    assert len(tables) == 12  # four tables, each as csv, md and tex
     for first in tables:
         second = tmp_path / "results/tables" / first.name
         assert second.read_bytes() == first.read_bytes(), f"{first.name} differs between two clean runs"
@@ -143,7 +144,7 @@ def test_changing_a_table2_parameter_reruns_table2_only(quick_run, tmp_path):
     jobs = {line.split()[0] for line in proc.stdout.splitlines() if line.strip() and "_" in line.split()[0]}
     planned = {j for j in jobs if j.startswith(("table", "fig"))}
     assert {"table2_run", "table2_table"} <= planned
-    assert not {j for j in planned if j.startswith(("table1", "table3", "fig"))}, proc.stdout[-3000:]
+    assert not {j for j in planned if j.startswith(("table1", "table3", "table4", "fig"))}, proc.stdout[-3000:]
 
 
 @pytest.mark.pipeline
@@ -152,7 +153,7 @@ def test_scorecard_counts_match_the_tables(quick_run):
     bands = yaml.safe_load((REPO / "config/quick.yaml").read_text())["scorecard"]
     scored = pd.read_csv(quick_run / "results/scorecard.csv")
     published = 0
-    for name in ("table1", "table2", "table3"):
+    for name in ("table1", "table2", "table3", "table4"):
         table = pd.read_csv(quick_run / f"results/tables/{name}.csv")
         headline = table[table["paper"].notna() & ~table["metric"].str.endswith(("_sd", "_min", "_max"))]
         published += len(headline)
@@ -180,7 +181,7 @@ def test_html_report_has_every_table_and_figure(quick_run):
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     html = (quick_run / "results/report.html").read_text(errors="replace")
-    for name in ("table1.md", "table2.md", "table3.md", "fig1.png", "fig3.png", "report.md"):
+    for name in ("table1.md", "table2.md", "table3.md", "table4.md", "fig1.png", "fig3.png", "report.md"):
         assert name in html, name
 
 
@@ -196,6 +197,7 @@ def test_every_job_is_planned_with_each_profile(tmp_path, profile):
         "table1_run": len(t1["noise_std"]) * t1["n_draws"],
         "table2_run": len(t2["p"]) * t2["n_masks"],
         "table3_run": len(t3["sequences"]) * (1 + t3["n_seeds"]),
+        "table4_run": len(config["table4"]["sequences"]) * (1 + config["table4"]["n_seeds"]),
         "scorecard": 1,
         "all": 1,
     }
@@ -206,3 +208,20 @@ def test_every_job_is_planned_with_each_profile(tmp_path, profile):
             counts.setdefault(parts[0], int(parts[1]))
     for rule, n in expected.items():
         assert counts.get(rule) == n, (rule, counts)
+
+
+@pytest.mark.pipeline
+def test_table4_target_has_tuned_tnh_and_both_widths_with_camera_errors(quick_run):
+    quick = yaml.safe_load((REPO / "config/quick.yaml").read_text())["table4"]
+    table = pd.read_csv(quick_run / "results/tables/table4.csv")
+    assert list(table.columns) == TABLE_COLUMNS
+    e3d = table[table["metric"] == "e3d"]
+    assert set(e3d["method"]) == {"TNH", "Kernel d_max", "Kernel d_med"}
+    assert e3d["paper"].notna().all() and (e3d["value"] > 0).all()
+    runs = pd.concat(pd.read_csv(p) for p in (quick_run / "results/runs/table4").glob("*.csv"))
+    assert len(runs) == 3 * len(quick["sequences"]) * (1 + quick["n_seeds"])
+    lo, hi = quick["tnh"]["log10_tau_bounds"]
+    tnh = runs[runs["method"] == "TNH"]
+    assert ((np.log10(tnh["tau"]) >= lo - 1e-9) & (np.log10(tnh["tau"]) <= hi + 1e-9)).all()
+    assert runs["camera_error"].notna().all() and runs["camera_error_init"].notna().all()
+    assert (quick_run / "results/notebooks/table4_nrsfm_cameras.ipynb").is_file()

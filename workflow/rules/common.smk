@@ -15,6 +15,12 @@ T3_RUNS = [f"results/runs/table3/{seq}_full_seed{T3['seed']}.csv" for seq in T3[
     for seq in T3["sequences"]
     for k in range(T3["n_seeds"])
 ]
+T4 = config["table4"]
+T4_RUNS = [f"results/runs/table4/{seq}_full_seed{T4['seed']}.csv" for seq in T4["sequences"]] + [
+    f"results/runs/table4/{seq}_missing_seed{T4['seed'] + k}.csv"
+    for seq in T4["sequences"]
+    for k in range(T4["n_seeds"])
+]
 T2_RUNS = expand("results/runs/table2/p{p}_seed{seed}.csv", p=T2_PS, seed=T2_SEEDS)
 
 

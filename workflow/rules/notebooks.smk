@@ -52,3 +52,19 @@ rule table3:
     localrule: True
     script:
         "../scripts/run_notebook.py"
+
+
+rule table4:
+    input:
+        notebook=str(REPO / "notebooks" / "table4_nrsfm_cameras.py"),
+        table="results/tables/table4.csv",
+        runs=T4_RUNS,
+    output:
+        "results/notebooks/table4_nrsfm_cameras.ipynb",
+    conda:
+        "../envs/nldr.yaml"
+    log:
+        "logs/notebooks/table4.log",
+    localrule: True
+    script:
+        "../scripts/run_notebook.py"

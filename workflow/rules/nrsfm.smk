@@ -32,3 +32,37 @@ rule table3_run:
         "results/benchmarks/table3_run/{seq}_{setting}_seed{seed}.tsv"
     script:
         "../scripts/table3_run.py"
+
+
+# NRSfM with estimated cameras (Table 4): one job per (sequence, setting, seed) runs the tau search of
+# TNH (each evaluation an alternation to convergence) and the kernel regularizer per width criterion.
+rule table4_run:
+    input:
+        mocap=f"{DATA_DIR}/nrsfm/{{seq}}.mat",
+    output:
+        table="results/runs/table4/{seq}_{setting}_seed{seed}.csv",
+        shapes="results/runs/table4/{seq}_{setting}_seed{seed}.npz",
+    params:
+        step=T4["step"],
+        missing_fraction=lambda wildcards: 0.0 if wildcards.setting == "full" else T4["missing_fraction"],
+        tnh=T4["tnh"],
+        tau=T4["tau"],
+        widths=T4["widths"],
+        kernel=T4["kernel"],
+        data_dir=lambda wildcards, input: data_dir_of(input.mocap),
+    wildcard_constraints:
+        seq=r"drink|pickup|yoga|stretch",
+        setting=r"full|missing",
+        seed=r"\d+",
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=60,
+    conda:
+        "../envs/nldr.yaml"
+    log:
+        "logs/table4_run/{seq}_{setting}_seed{seed}.log",
+    benchmark:
+        "results/benchmarks/table4_run/{seq}_{setting}_seed{seed}.tsv"
+    script:
+        "../scripts/table4_run.py"

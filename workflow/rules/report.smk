@@ -3,11 +3,11 @@
 
 rule scorecard:
     input:
-        tables=expand("results/tables/{name}.csv", name=["table1", "table2", "table3"]),
+        tables=expand("results/tables/{name}.csv", name=["table1", "table2", "table3", "table4"]),
         figures=["results/figures/fig3.png", "results/figures/fig1.png"],
         data=oil_files("train")
         + oil_files("test")
-        + expand(f"{DATA_DIR}/nrsfm/{{seq}}.mat", seq=T3["sequences"]),
+        + expand(f"{DATA_DIR}/nrsfm/{{seq}}.mat", seq=sorted(set(T3["sequences"]) | set(T4["sequences"]))),
     output:
         md=report("results/report.md", caption="../report/scorecard.rst", category="Scorecard"),
         csv="results/scorecard.csv",
