@@ -53,3 +53,12 @@ def write_csv(path, frame) -> None:
     """Write a DataFrame as CSV atomically (full precision, no index)."""
     with atomic_path(path) as tmp:
         frame.to_csv(tmp, index=False, float_format="%.10g")
+
+
+def write_npz(path, **arrays) -> None:
+    """Write arrays to a compressed .npz atomically."""
+    import numpy as np
+
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **arrays)

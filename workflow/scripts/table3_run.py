@@ -1,7 +1,7 @@
 """One (sequence, setting, seed) of Table 3: TNH, then the kernel regularizer per width criterion."""
 
 import numpy as np
-from _pipeline import atomic_path, setup, write_csv
+from _pipeline import setup, write_csv, write_npz
 
 from nldr.datasets import load_mocap
 from nldr.experiments.table3 import run_sequence
@@ -21,13 +21,11 @@ run = run_sequence(
     **dict(sm.params.regularizer),
 )
 log.info("\n%s", run.rows.to_string())
-with atomic_path(sm.output.shapes) as tmp:
-    with open(tmp, "wb") as fh:
-        np.savez_compressed(
-            fh,
-            methods=np.array(list(run.shapes)),
-            mask=run.mask,
-            ground_truth=run.ground_truth,
-            **{f"shape_{i}": X for i, X in enumerate(run.shapes.values())},
-        )
+write_npz(
+    sm.output.shapes,
+    methods=np.array(list(run.shapes)),
+    mask=run.mask,
+    ground_truth=run.ground_truth,
+    **{f"shape_{i}": X for i, X in enumerate(run.shapes.values())},
+)
 write_csv(sm.output.table, run.rows)

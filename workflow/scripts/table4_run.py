@@ -1,7 +1,7 @@
 """One (sequence, setting, seed) of Table 4: tuned TNH with estimated cameras, then the kernel method."""
 
 import numpy as np
-from _pipeline import atomic_path, setup, write_csv
+from _pipeline import setup, write_csv, write_npz
 
 from nldr.datasets import load_mocap
 from nldr.experiments.table4 import run_sequence
@@ -28,16 +28,14 @@ run = run_sequence(
 )
 log.info("\n%s", run.rows.to_string())
 log.info("TNH tau search (tau, e3d): %s", [(round(t, 5), round(e, 5)) for t, e in run.tau_search])
-with atomic_path(sm.output.shapes) as tmp:
-    with open(tmp, "wb") as fh:
-        np.savez_compressed(
-            fh,
-            methods=np.array(list(run.shapes)),
-            mask=run.mask,
-            ground_truth=run.ground_truth,
-            rigid_cameras=run.cameras["rigid"],
-            tau_search=np.array(run.tau_search),
-            **{f"shape_{i}": X for i, X in enumerate(run.shapes.values())},
-            **{f"cameras_{i}": run.cameras[m] for i, m in enumerate(run.shapes)},
-        )
+write_npz(
+    sm.output.shapes,
+    methods=np.array(list(run.shapes)),
+    mask=run.mask,
+    ground_truth=run.ground_truth,
+    rigid_cameras=run.cameras["rigid"],
+    tau_search=np.array(run.tau_search),
+    **{f"shape_{i}": X for i, X in enumerate(run.shapes.values())},
+    **{f"cameras_{i}": run.cameras[m] for i, m in enumerate(run.shapes)},
+)
 write_csv(sm.output.table, run.rows)
