@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._validation import as_float_matrix, check_positive
-from .reprojection import check_cameras, check_visibility_mask
+from .reprojection import OrthographicReprojection
 
 __all__ = ["ProximalTNHResult", "tnh_proximal"]
 
@@ -102,43 +102,30 @@ def tnh_proximal(
     -------
     ProximalTNHResult
     """
-    W2d = as_float_matrix(W2d, "W2d", allow_nan=True)
-    if W2d.shape[1] % 2:
-        raise ValueError(f"W2d must have shape (F, 2P); got {W2d.shape}")
-    F, P = W2d.shape[0], W2d.shape[1] // 2
-    R = check_cameras(R, F)
-    Z = check_visibility_mask(mask, (F, P)) if mask is not None else np.ones((F, P), dtype=bool)
-    Zf = np.repeat(Z[:, None, :], 2, axis=1).astype(np.float64)  # (F, 2, P)
-    Wf = np.where(Zf > 0, W2d.reshape(F, 2, P), 0.0)
-    if not np.all(np.isfinite(Wf)):
-        raise ValueError("W2d has NaN or infinite values at observed entries")
+    term = OrthographicReprojection(W2d, R, mask)  # validates the tracks, cameras and mask
     tau = check_positive(tau, "tau")
     tol = check_positive(tol, "tol")
     if isinstance(max_iter, bool) or not isinstance(max_iter, int | np.integer) or max_iter < 1:
         raise ValueError(f"max_iter must be a positive integer; got {max_iter!r}")
     if X0 is None:
-        X = np.zeros((F, 3 * P))
+        X = np.zeros(term.shape)
     else:
         X = as_float_matrix(X0, "X0").copy()
-        if X.shape != (F, 3 * P):
-            raise ValueError(f"X0 must have shape (F, 3P) = {(F, 3 * P)}; got {X.shape}")
+        if X.shape != term.shape:
+            raise ValueError(f"X0 must have shape (F, 3P) = {term.shape}; got {X.shape}")
 
-    lipschitz = 2.0 * max(float(np.max(np.linalg.norm(R, ord=2, axis=(1, 2)))) ** 2, 1e-12)
+    lipschitz = 2.0 * max(float(np.max(np.linalg.norm(term.R, ord=2, axis=(1, 2)))) ** 2, 1e-12)
     step = 1.0 / lipschitz
 
-    def residual(Xm):
-        return Zf * (Wf - np.einsum("fck,fkp->fcp", R, Xm.reshape(F, 3, P)))
-
     def objective(Xm, nuclear):
-        r = residual(Xm)
-        return tau * nuclear + float(np.sum(r * r))
+        return tau * nuclear + term.value(Xm)
 
-    f_prev = objective(X, float(np.linalg.svd(X, compute_uv=False).sum()))
+    x_nuclear = float(np.linalg.svd(X, compute_uv=False).sum())
+    f_prev = objective(X, x_nuclear)
     Y, t = X.copy(), 1.0
     converged, message, it = False, f"reached max_iter={max_iter}", 0
     for it in range(1, max_iter + 1):
-        grad = -2.0 * np.einsum("fck,fcp->fkp", R, residual(Y)).reshape(F, 3 * P)
-        X_new, nuclear = _soft_threshold_singular_values(Y - step * grad, step * tau)
+        X_new, nuclear = _soft_threshold_singular_values(Y - step * term.gradient(Y), step * tau)
         f_new = objective(X_new, nuclear)
         if f_new > f_prev and t > 1.0:
             # momentum overshot: restart from the last iterate with a plain proximal step
@@ -147,20 +134,18 @@ def tnh_proximal(
         t_new = (1.0 + np.sqrt(1.0 + 4.0 * t * t)) / 2.0
         Y = X_new + ((t - 1.0) / t_new) * (X_new - X)
         decrease = (f_prev - f_new) / max(abs(f_new), 1e-300)
-        X, t, f_prev = X_new, t_new, f_new
+        X, x_nuclear, t, f_prev = X_new, nuclear, t_new, f_new
         if decrease < tol:  # a negative value here is rounding at the optimum (t = 1 steps are monotone)
             converged, message = (
                 True,
                 f"relative objective decrease {decrease:.2g} < tol after {it} iterations",
             )
             break
-    nuclear = float(np.linalg.svd(X, compute_uv=False).sum())
-    r = residual(X)
-    reproj = float(np.sum(r * r))
+    reproj = term.value(X)
     return ProximalTNHResult(
         X=X,
-        objective=tau * nuclear + reproj,
-        nuclear_norm=nuclear,
+        objective=tau * x_nuclear + reproj,
+        nuclear_norm=x_nuclear,
         reprojection_error=reproj,
         n_iter=it,
         converged=converged,

@@ -78,15 +78,16 @@ def tnh_with_camera_refinement(
         Cameras, shapes, histories (``energy_history`` is the joint energy), ``converged``.
     """
     tau = check_positive(tau, "tau")
-    state = {"X": None}
+    last = {}  # the latest shape step's result: warm start, and its nuclear norm for the penalty
 
     def shape_step(R):
-        res = tnh_proximal(W2d, R, mask, tau=tau, X0=state["X"], max_iter=shape_max_iter, tol=shape_tol)
-        state["X"] = res.X
-        return res.X
+        last["res"] = tnh_proximal(
+            W2d, R, mask, tau=tau, X0=last["res"].X if last else None, max_iter=shape_max_iter, tol=shape_tol
+        )
+        return last["res"].X
 
     def penalty(X):
-        return tau * float(np.linalg.svd(X, compute_uv=False).sum())
+        return tau * last["res"].nuclear_norm  # X is that result's X
 
     return refine_cameras_and_shapes(
         W2d,
