@@ -295,3 +295,83 @@ def test_bad_start_or_data_term_raises(small_problem):
         minimize_regularized(object(), S, gamma=0.4, tau=0.1)
     with pytest.raises(ValueError, match="C"):
         regularized_energy(S, np.ones((3, 4)), term, gamma=0.4, tau=0.1, rho=1.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# Partial eigendecomposition against the reference (full) implementation
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def large_helix_completion():
+    # n = 320 >= 300, so eigensolver="auto" takes the partial path.
+    rng = np.random.default_rng(4)
+    X = _helix(320, rng)
+    mask = rng.random(X.shape) > 0.2
+    S0 = np.where(mask, X, np.nanmean(np.where(mask, X, np.nan), axis=0))
+    return X, mask, S0
+
+
+def test_leading_eigenpairs_are_exactly_the_ones_above_the_threshold(large_helix_completion):
+    from nldr.robust_kpca import _leading_eigenpairs, rank_penalty_threshold
+
+    _, _, S0 = large_helix_completion
+    K = rbf_kernel(S0, 0.5)
+    t = rank_penalty_threshold(0.1, 1.0)
+    full = np.linalg.eigvalsh(K)[::-1]
+    for solver in ("auto", "partial", "full"):
+        lam, U = _leading_eigenpairs(K, t, solver)
+        assert lam.size == np.count_nonzero(full > t) < K.shape[0] // 4
+        # Backward-stable eigensolvers: eigenvalues to n eps ||K||, eigenpairs K u = lam u likewise.
+        bound = K.shape[0] * np.finfo(float).eps * np.linalg.norm(K, 2)
+        np.testing.assert_allclose(lam, full[: lam.size], rtol=0, atol=bound)
+        assert np.all(np.diff(lam) <= 0)
+        np.testing.assert_allclose(K @ U, U * lam, rtol=0, atol=10 * bound)
+        np.testing.assert_allclose(U.T @ U, np.eye(lam.size), rtol=0, atol=10 * bound)
+
+
+@pytest.mark.parametrize("center", [False, True])
+@pytest.mark.parametrize("rho", [1.0, 1e4])
+def test_partial_eigensolver_gives_the_reference_energy_and_gradient(large_helix_completion, center, rho):
+    X, mask, S0 = large_helix_completion
+    term = MaskedLeastSquares(X, mask)
+    kw = dict(gamma=0.5, tau=0.1, rho=rho, center=center)
+    v_ref, g_ref = reduced_energy(S0, term, eigensolver="full", **kw)
+    K = rbf_kernel(S0, 0.5)
+    # dE/dK = rho (K - C^T C) is formed from eigenpairs exact to n eps ||K|| (backward error), so each
+    # entry of the gradient moves by at most about rho n eps ||K||_F; the value by far less.
+    atol = rho * K.shape[0] * np.finfo(float).eps * np.linalg.norm(K)
+    for solver in ("auto", "partial"):
+        v, g = reduced_energy(S0, term, eigensolver=solver, **kw)
+        assert v == pytest.approx(v_ref, rel=1e-12)
+        np.testing.assert_allclose(g, g_ref, rtol=0, atol=atol)
+
+
+@pytest.mark.parametrize("center", [False, True])
+def test_solver_with_partial_decompositions_reproduces_the_reference_solve(large_helix_completion, center):
+    """Fixed seeds: the new default ("auto") against the original full-decomposition solver."""
+    X, mask, S0 = large_helix_completion
+    term = MaskedLeastSquares(X, mask)
+    ref = minimize_regularized(term, S0, gamma=0.5, tau=0.1, center=center, eigensolver="full")
+    new = minimize_regularized(term, S0, gamma=0.5, tau=0.1, center=center)
+    assert ref.converged and new.converged
+    np.testing.assert_array_equal(new.rank_history, ref.rank_history)
+    # Both stop at the same minimum, each once a step lowers the energy by less than ftol = 1e-10
+    # relative; what remains is a few times that per stage.
+    np.testing.assert_allclose(new.stage_energy, ref.stage_energy, rtol=1e-8)
+    np.testing.assert_allclose(new.S, ref.S, rtol=0, atol=1e-3 * np.abs(X).max())
+    np.testing.assert_allclose(new.C.T @ new.C, ref.C.T @ ref.C, rtol=0, atol=1e-3)
+
+
+def test_closed_form_partial_and_full_agree():
+    rng = np.random.default_rng(5)
+    K = rbf_kernel(rng.normal(size=(350, 5)), 0.2)
+    C_full = closed_form_rank_penalty(K, 2.0, 1.0, eigensolver="full")
+    C_part = closed_form_rank_penalty(K, 2.0, 1.0, eigensolver="partial")
+    assert C_part.shape == C_full.shape == K.shape
+    np.testing.assert_allclose(C_part.T @ C_part, C_full.T @ C_full, rtol=0, atol=1e-10)
+    with pytest.raises(ValueError, match="eigensolver"):
+        closed_form_rank_penalty(K, 2.0, 1.0, eigensolver="lanczos")
+    with pytest.raises(ValueError, match="eigensolver"):
+        S = K[:, :3]
+        minimize_regularized(MaskedLeastSquares(S, S > 0.5), S, gamma=1.0, tau=1.0, eigensolver=1)

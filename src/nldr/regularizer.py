@@ -62,7 +62,7 @@ from scipy.sparse.linalg import LinearOperator, aslinearoperator
 from ._validation import as_float_matrix, check_positive
 from .data_terms import DataTerm
 from .kernels import center_kernel, rbf_kernel_vjp, squared_distances
-from .robust_kpca import _shrink
+from .robust_kpca import _check_eigensolver, _leading_eigenpairs, _shrink, _threshold
 
 __all__ = [
     "RegularizerResult",
@@ -162,14 +162,39 @@ def _spectrum(K: np.ndarray, tau: float, rho: float):
     return lam, U, _shrink(lam, tau, rho)
 
 
-def _reduced_value_grad(S, data_term, gamma, tau, rho, center):
-    """E_rho(S), its gradient (n, d), and the spectrum (lam, U, l); no validation."""
+class _RankHint:
+    """The rank of the previous evaluation, so "auto" can skip a partial decomposition that won't pay."""
+
+    def __init__(self):
+        self.rank: int | None = None
+
+
+def _reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver="auto", hint=None):
+    """E_rho(S), its gradient (n, d), and the spectrum (lam, U, l); no validation.
+
+    ``eigensolver="full"`` is the reference: every eigenpair, ``dE/dK = U diag(rho gap) U^T`` (O(n^3)).
+    Otherwise only the eigenpairs above the cubic's threshold are computed (see the maintenance note
+    of :mod:`nldr.robust_kpca`) and ``dE/dK = rho (K - C^T C)`` is formed from the kept ones, O(n^2 r)
+    for rank r; the spectrum returned then holds only those eigenpairs.
+    """
     K_rbf = _rbf(S, gamma)
     K = center_kernel(K_rbf) if center else K_rbf
-    lam, U, l = _spectrum(K, tau, rho)
-    gap = lam - l * l
-    value = data_term.value(S) + 0.5 * rho * float(gap @ gap) + tau * float(l.sum())
-    G = (U * (rho * gap)) @ U.T  # dE/dK = rho (K - C*^T C*), see the maintenance note
+    if eigensolver == "full":
+        lam, U, l = _spectrum(K, tau, rho)
+        gap = lam - l * l
+        value = data_term.value(S) + 0.5 * rho * float(gap @ gap) + tau * float(l.sum())
+        G = (U * (rho * gap)) @ U.T  # dE/dK = rho (K - C*^T C*), see the maintenance note
+    else:
+        expected = None if hint is None else hint.rank
+        lam, U = _leading_eigenpairs(K, _threshold(tau, rho), eigensolver, expected)
+        l = _shrink(lam, tau, rho)
+        if hint is not None:
+            hint.rank = lam.size
+        UL = U[:, l > 0] * l[l > 0]  # C*^T, shape (n, r)
+        D = K - UL @ UL.T  # K - C*^T C*
+        d = D.ravel()
+        value = data_term.value(S) + 0.5 * rho * float(d @ d) + tau * float(l.sum())
+        G = np.multiply(D, rho, out=D)
     if center:
         G = center_kernel(G)  # H G H (G symmetric)
     grad = data_term.gradient(S) + rbf_kernel_vjp(S, K_rbf, G, gamma)
@@ -188,7 +213,16 @@ def _check_common(data_term, S, gamma, tau, rho, name_S="S"):
     return S, check_positive(gamma, "gamma"), check_positive(tau, "tau"), check_positive(rho, "rho")
 
 
-def reduced_energy(S, data_term: DataTerm, *, gamma: float, tau: float, rho: float, center: bool = False):
+def reduced_energy(
+    S,
+    data_term: DataTerm,
+    *,
+    gamma: float,
+    tau: float,
+    rho: float,
+    center: bool = False,
+    eigensolver: str = "auto",
+):
     """Reduced energy E_rho(S) = min_C E_rho(S, C) and its gradient with respect to S.
 
     Parameters
@@ -205,6 +239,9 @@ def reduced_energy(S, data_term: DataTerm, *, gamma: float, tau: float, rho: flo
         Penalty weight.
     center : bool, default=False
         Use the double-centred kernel H K H.
+    eigensolver : {"auto", "partial", "full"}, default="auto"
+        "full": every eigenpair of K (the reference). "partial": only those above the cubic's
+        threshold, the only ones C keeps. "auto": partial for n >= 300. Same value up to rounding.
 
     Returns
     -------
@@ -214,11 +251,14 @@ def reduced_energy(S, data_term: DataTerm, *, gamma: float, tau: float, rho: flo
         Envelope-theorem gradient (see the module's maintenance note).
     """
     S, gamma, tau, rho = _check_common(data_term, S, gamma, tau, rho)
-    value, grad, _ = _reduced_value_grad(S, data_term, gamma, tau, rho, bool(center))
+    eigensolver = _check_eigensolver(eigensolver)
+    value, grad, _ = _reduced_value_grad(S, data_term, gamma, tau, rho, bool(center), eigensolver)
     return float(value), grad
 
 
-def optimal_kernel_factor(S, *, gamma: float, tau: float, rho: float, center: bool = False) -> np.ndarray:
+def optimal_kernel_factor(
+    S, *, gamma: float, tau: float, rho: float, center: bool = False, eigensolver: str = "auto"
+) -> np.ndarray:
     """The C-step: closed-form minimiser C of ``tau ||C||_* + rho/2 ||K(S) - C^T C||_F^2``.
 
     Parameters
@@ -226,6 +266,8 @@ def optimal_kernel_factor(S, *, gamma: float, tau: float, rho: float, center: bo
     S : array, shape (n_samples, n_features)
     gamma, tau, rho : float > 0
     center : bool, default=False
+    eigensolver : {"auto", "partial", "full"}, default="auto"
+        See :func:`nldr.robust_kpca.closed_form_rank_penalty`.
 
     Returns
     -------
@@ -237,8 +279,15 @@ def optimal_kernel_factor(S, *, gamma: float, tau: float, rho: float, center: bo
     K = _rbf(S, gamma)
     if center:
         K = center_kernel(K)
-    _, U, l = _spectrum(K, tau, rho)
-    return l[:, None] * U.T
+    lam, U = _leading_eigenpairs(K, _threshold(tau, rho), _check_eigensolver(eigensolver))
+    return _kernel_factor(_shrink(lam, tau, rho), U)
+
+
+def _kernel_factor(l: np.ndarray, U: np.ndarray) -> np.ndarray:
+    """C = diag(l) U^T zero-padded to (n, n) (U may hold only the leading eigenvectors)."""
+    C = np.zeros((U.shape[0], U.shape[0]))
+    C[: l.size] = l[:, None] * U.T
+    return C
 
 
 def regularized_energy(
@@ -532,11 +581,13 @@ def _rho_schedule(rho0: float, growth: float, rho_max: float) -> list[float]:
     return rhos
 
 
-def _stage_reduced(S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies):
+def _stage_reduced(S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint):
     shape = S.shape
 
     def fun(x):
-        value, grad, _ = _reduced_value_grad(x.reshape(shape), data_term, gamma, tau, rho, center)
+        value, grad, _ = _reduced_value_grad(
+            x.reshape(shape), data_term, gamma, tau, rho, center, eigensolver, hint
+        )
         return value, grad.ravel()
 
     def record(intermediate_result):
@@ -557,7 +608,19 @@ def _stage_reduced(S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, 
 
 
 def _stage_alternation(
-    S, data_term, gamma, tau, rho, center, max_inner, tol, lm_max_iter, lm_tol, jacobian, energies
+    S,
+    data_term,
+    gamma,
+    tau,
+    rho,
+    center,
+    max_inner,
+    tol,
+    lm_max_iter,
+    lm_tol,
+    jacobian,
+    energies,
+    eigensolver,
 ):
     n = S.shape[0]
     iu, w = _upper_weights(n, rho)
@@ -566,8 +629,13 @@ def _stage_alternation(
         K = _rbf(S, gamma)
         if center:
             K = center_kernel(K)
-        lam, U, l = _spectrum(K, tau, rho)  # C-step
-        B = (U * l**2) @ U.T
+        if eigensolver == "full":
+            lam, U, l = _spectrum(K, tau, rho)  # C-step
+            B = (U * l**2) @ U.T
+        else:
+            lam, U = _leading_eigenpairs(K, _threshold(tau, rho), eigensolver)  # C-step
+            l = _shrink(lam, tau, rho)
+            B = (U * l**2) @ U.T
         S, _ = _pre_image(
             S,
             B,
@@ -609,6 +677,7 @@ def minimize_regularized(
     lm_max_iter: int = 50,
     lm_tol: float = 1e-8,
     jacobian: str = "analytic",
+    eigensolver: str = "auto",
 ) -> RegularizerResult:
     """Minimise ``f(S) + rho/2 ||K(S) - C^T C||_F^2 + tau ||C||_*`` by the penalty method.
 
@@ -655,6 +724,12 @@ def minimize_regularized(
         ``"alternation"`` only: ``ftol``, ``xtol`` and ``gtol`` of each S-step.
     jacobian : {"analytic", "finite-difference"}, default="analytic"
         ``"alternation"`` only: the Jacobian used by Levenberg-Marquardt.
+    eigensolver : {"auto", "partial", "full"}, default="auto"
+        The C-step's decomposition. Only eigenpairs above the cubic's threshold survive, so
+        "partial" computes just those (LAPACK MRRR) and forms dE/dK = rho (K - C^T C) from them;
+        "full" decomposes the whole kernel (the original implementation, kept as the reference);
+        "auto" uses "partial" for n >= 300 unless the previous evaluation kept more than a quarter
+        of the spectrum. The three agree to rounding (tests/test_regularizer.py).
 
     Returns
     -------
@@ -689,7 +764,9 @@ def minimize_regularized(
     gtol = check_positive(gtol, "gtol")
     lm_max_iter = _check_count(lm_max_iter, "lm_max_iter")
     lm_tol = check_positive(lm_tol, "lm_tol")
+    eigensolver = _check_eigensolver(eigensolver)
     center = bool(center)
+    hint = _RankHint()
 
     S = S.copy()
     energies: list[float] = []
@@ -702,16 +779,28 @@ def minimize_regularized(
         before = len(energies)
         if method == "reduced":
             S, nit, ok, why = _stage_reduced(
-                S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies
+                S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint
             )
         else:
             S, nit, ok, why = _stage_alternation(
-                S, data_term, gamma, tau, rho, center, max_inner, tol, lm_max_iter, lm_tol, jacobian, energies
+                S,
+                data_term,
+                gamma,
+                tau,
+                rho,
+                center,
+                max_inner,
+                tol,
+                lm_max_iter,
+                lm_tol,
+                jacobian,
+                energies,
+                eigensolver,
             )
         stage_index.extend([k] * (len(energies) - before))
         n_inner += nit
-        value, _, (lam, U, l) = _reduced_value_grad(S, data_term, gamma, tau, rho, center)
-        C = l[:, None] * U.T
+        value, _, (lam, U, l) = _reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver, hint)
+        C = _kernel_factor(l, U)
         stage_energy.append(value)
         ranks.append(int(np.count_nonzero(l)))
         if not ok:

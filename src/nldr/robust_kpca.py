@@ -21,6 +21,17 @@ So every eigenvalue at or below lambda_star (and every negative eigenvalue) maps
 threshold is known before any decomposition. Only tau / rho matters for the minimiser; rho scales the
 energy. The paper's Algorithm 2 solves the cubic per eigenvalue in a loop; here it is one vectorised
 expression over the whole spectrum.
+
+Maintenance note (partial decompositions). Because the threshold is known first, only the eigenpairs
+with lambda > lambda_star are needed: everything else maps to l = 0 and drops out of C. LAPACK's
+MRRR driver (``syevr`` through ``scipy.linalg.eigh(subset_by_value=...)``) computes just those. It
+still reduces K to tridiagonal form (the O(n^3) part every method shares) but skips the eigenvectors
+that are not wanted, which is where a full decomposition spends most of its time once n is a few
+hundred. It pays only when few eigenvalues pass the threshold and n is large: below
+``_PARTIAL_MIN_N`` the full ``numpy.linalg.eigh`` is faster, and when more than
+``_PARTIAL_MAX_FRACTION`` of the spectrum passes, MRRR's per-eigenvector work exceeds the full
+divide-and-conquer (measured: benchmarks/bench_spectrum.py). :func:`_leading_eigenpairs` chooses, and
+falls back to the full decomposition if the partial one fails.
 """
 
 from __future__ import annotations
@@ -28,6 +39,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
@@ -35,6 +47,7 @@ from ._validation import check_positive, check_symmetric_kernel
 from .kernels import center_cross_kernel, center_kernel, rbf_kernel
 
 __all__ = [
+    "EIGENSOLVERS",
     "rank_penalty_threshold",
     "shrink_eigenvalues",
     "RankPenaltySpectrum",
@@ -45,10 +58,58 @@ __all__ = [
 ]
 
 
+#: Eigensolver choices: "auto" (partial when it pays, see the maintenance note), "partial" (always the
+#: eigenpairs above the threshold), "full" (every eigenpair, numpy.linalg.eigh).
+EIGENSOLVERS = ("auto", "partial", "full")
+#: Smallest n for which "auto" tries the partial decomposition (benchmarks/bench_spectrum.py).
+_PARTIAL_MIN_N = 300
+#: "auto" uses the full decomposition when more than this fraction of eigenvalues is expected to pass.
+_PARTIAL_MAX_FRACTION = 0.25
+
+
 def rank_penalty_threshold(tau: float, rho: float) -> float:
     """Largest kernel eigenvalue that the closed form maps to zero: 3 (b^2/2)^(1/3), b = tau/(2 rho)."""
-    b = check_positive(tau, "tau") / (2.0 * check_positive(rho, "rho"))
+    return _threshold(check_positive(tau, "tau"), check_positive(rho, "rho"))
+
+
+def _threshold(tau: float, rho: float) -> float:
+    b = tau / (2.0 * rho)
     return 3.0 * (b * b / 2.0) ** (1.0 / 3.0)
+
+
+def _check_eigensolver(eigensolver) -> str:
+    if eigensolver not in EIGENSOLVERS:
+        raise ValueError(f"eigensolver must be one of {EIGENSOLVERS}; got {eigensolver!r}")
+    return eigensolver
+
+
+def _leading_eigenpairs(
+    K: np.ndarray, threshold: float, eigensolver: str = "auto", expected: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenpairs of symmetric K with eigenvalue > threshold, in decreasing order (no validation).
+
+    Returns ``(lam, U)`` with lam of shape (k,) and U of shape (n, k). ``expected`` is a guess of k
+    (e.g. the previous iterate's rank); "auto" goes straight to the full decomposition when it exceeds
+    ``_PARTIAL_MAX_FRACTION * n``.
+    """
+    n = K.shape[0]
+    partial = eigensolver == "partial" or (
+        eigensolver == "auto"
+        and n >= _PARTIAL_MIN_N
+        and (expected is None or expected <= _PARTIAL_MAX_FRACTION * n)
+    )
+    if partial:
+        try:
+            lam, U = scipy.linalg.eigh(
+                K, subset_by_value=(threshold, np.inf), driver="evr", check_finite=False
+            )
+        except (np.linalg.LinAlgError, ValueError):
+            pass  # fall back to the full decomposition below
+        else:
+            return lam[::-1], U[:, ::-1]
+    lam, U = np.linalg.eigh(K)
+    k = int(np.count_nonzero(lam > threshold))
+    return lam[::-1][:k], U[:, ::-1][:, :k]
 
 
 def _shrink(lam: np.ndarray, tau: float, rho: float) -> np.ndarray:
@@ -56,7 +117,7 @@ def _shrink(lam: np.ndarray, tau: float, rho: float) -> np.ndarray:
     b = tau / (2.0 * rho)
     lam = np.asarray(lam, dtype=np.float64)
     l = np.zeros_like(lam)
-    keep = lam > 3.0 * (b * b / 2.0) ** (1.0 / 3.0)
+    keep = lam > _threshold(tau, rho)
     if np.any(keep):
         a = lam[keep]
         arg = np.clip(-(3.0 * np.sqrt(3.0) * b) / (2.0 * a**1.5), -1.0, 1.0)
@@ -142,7 +203,7 @@ def rank_penalty_spectrum(K, tau: float, rho: float) -> RankPenaltySpectrum:
     return RankPenaltySpectrum(lam, _shrink(lam, tau, rho), U, tau, rho)
 
 
-def closed_form_rank_penalty(K, tau: float, rho: float) -> np.ndarray:
+def closed_form_rank_penalty(K, tau: float, rho: float, *, eigensolver: str = "auto") -> np.ndarray:
     """Minimise ``tau ||C||_* + rho/2 ||K - C^T C||_F^2`` over C in closed form.
 
     Parameters
@@ -154,6 +215,11 @@ def closed_form_rank_penalty(K, tau: float, rho: float) -> np.ndarray:
         Weight of the trace norm of C (equal to the trace norm of the feature-space data).
     rho : float > 0
         Weight of the kernel-mismatch penalty. Only tau / rho changes the minimiser.
+    eigensolver : {"auto", "partial", "full"}, default "auto"
+        How to decompose K. Only eigenpairs above :func:`rank_penalty_threshold` enter C, so
+        "partial" computes just those (LAPACK MRRR); "full" computes every eigenpair; "auto" picks
+        "partial" for n >= 300 (see the module's maintenance note). All give the same C up to
+        rounding.
 
     Returns
     -------
@@ -164,9 +230,17 @@ def closed_form_rank_penalty(K, tau: float, rho: float) -> np.ndarray:
     Raises
     ------
     ValueError
-        If K is not a finite symmetric square matrix or tau, rho are not finite and positive.
+        If K is not a finite symmetric square matrix, tau, rho are not finite and positive, or the
+        eigensolver is unknown.
     """
-    return rank_penalty_spectrum(K, tau, rho).C
+    K = check_symmetric_kernel(K, "K")
+    tau = check_positive(tau, "tau")
+    rho = check_positive(rho, "rho")
+    lam, U = _leading_eigenpairs(K, _threshold(tau, rho), _check_eigensolver(eigensolver))
+    l = _shrink(lam, tau, rho)
+    C = np.zeros_like(K)
+    C[: l.size] = l[:, None] * U.T
+    return C
 
 
 def rank_penalty_energy(K, C, tau: float, rho: float) -> float:
