@@ -22,6 +22,25 @@ T4_RUNS = [f"results/runs/table4/{seq}_full_seed{T4['seed']}.csv" for seq in T4[
     for k in range(T4["n_seeds"])
 ]
 T2_RUNS = expand("results/runs/table2/p{p}_seed{seed}.csv", p=T2_PS, seed=T2_SEEDS)
+# Extra targets (speed and scale, not in the paper): Table 2 on more rows, Table 3 on every frame.
+T2F = config["table2_full"]
+T2F_RUNS = expand(
+    "results/runs/table2_full/p{p}_seed{seed}.csv",
+    p=T2_PS,
+    seed=[T2["seed"] + k for k in range(T2F["n_masks"])],
+)
+T3F = config["table3_full"]
+T3F_RUNS = [f"results/runs/table3_full/{seq}_full_seed{T3['seed']}.csv" for seq in T3["sequences"]] + [
+    f"results/runs/table3_full/{seq}_missing_seed{T3['seed'] + k}.csv"
+    for seq in T3["sequences"]
+    for k in range(T3F["n_seeds"])
+]
+
+
+def every_nth_frame(step):
+    """'every frame', 'every 2nd frame', ..., 'every 10th frame' (for captions)."""
+    suffix = {1: "st", 2: "nd", 3: "rd"}.get(step % 10 if step % 100 not in (11, 12, 13) else 0, "th")
+    return "every frame" if step == 1 else f"every {step}{suffix} frame"
 
 
 def table1_taus():

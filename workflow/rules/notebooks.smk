@@ -68,3 +68,16 @@ rule table4:
     localrule: True
     script:
         "../scripts/run_notebook.py"
+
+
+# Extra targets (speed and scale, not in the paper): the table alone, no notebook.
+rule table2_full:
+    input:
+        table_outputs("table2_full"),
+    localrule: True
+
+
+rule table3_full:
+    input:
+        table_outputs("table3_full"),
+    localrule: True

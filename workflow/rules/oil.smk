@@ -55,3 +55,21 @@ rule table2_run:
         "results/benchmarks/table2_run/p{p}_seed{seed}.tsv"
     script:
         "../scripts/table2_run.py"
+
+
+# Table 2's protocol on more rows (config table2_full; not in the paper): same script, same masks.
+use rule table2_run as table2_full_run with:
+    output:
+        "results/runs/table2_full/p{p}_seed{seed}.csv",
+    params:
+        n_rows=T2F["n_rows"],
+        gamma=T2["gamma"],
+        methods=T2["methods"],
+        data_dir=lambda wildcards, input: data_dir_of(input.train[0]),
+    resources:
+        mem_mb=2000,
+        runtime=60,
+    log:
+        "logs/table2_full_run/p{p}_seed{seed}.log",
+    benchmark:
+        "results/benchmarks/table2_full_run/p{p}_seed{seed}.tsv"
