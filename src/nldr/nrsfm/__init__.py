@@ -1,9 +1,13 @@
 """Non-rigid structure from motion (paper Section 4.3): layouts, e3D metric, reprojection term, TNH.
 
+TNH (the trace-norm heuristic) is solved by cvxpy (:class:`TraceNormHeuristic`) or, in its exact-fit
+form and for full-length sequences, by ADMM (:func:`tnh_admm`).
+
 Shapes are samples as rows, X (F, 3P); image tracks W (F, 2P); cameras R (F, 2, 3); visibility
 masks (F, P). See :mod:`nldr.nrsfm.layout` for conversions from the benchmark's stacked matrices.
 """
 
+from .admm import tnh_admm
 from .layout import (
     cameras_from_stack,
     cameras_to_stack,
@@ -31,4 +35,5 @@ __all__ = [
     "TNHResult",
     "TNHSolveError",
     "trace_norm_heuristic",
+    "tnh_admm",
 ]

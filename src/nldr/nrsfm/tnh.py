@@ -26,6 +26,12 @@ near-degenerate low-rank optimum slows the tail of convergence), and matches CLA
 problems (tests/test_nrsfm.py). SCS is therefore the default; CLARABEL is the reference for small
 problems. Timings and e3D per sequence: benchmarks/bench_tnh.py.
 
+For the exact-fit form ``solver="ADMM"`` bypasses cvxpy and runs :func:`nldr.nrsfm.admm.tnh_admm`, a
+first-order splitting whose cost per iteration is linear in F: seconds on the subsampled sequences
+and on full-length ones (drink, 1102 frames), which SCS cannot handle; benchmarks/bench_tnh_admm.py.
+Constructing :class:`TraceNormHeuristic` only builds cvxpy's expression trees (~0.02 s for drink's
+1102 frames); cvxpy compiles a problem on its first solve, so an ADMM-only use never pays for it.
+
 The parameter tau is a ``cvxpy.Parameter``: sweeping tau re-solves without recompiling.
 """
 
@@ -98,6 +104,12 @@ class TNHResult:
         Largest absolute reprojection residual over observed coordinates (unit of the tracks).
     solver_options : dict
         Options passed to the solver.
+    dual : array, shape (F, 3P), or None
+        ADMM only: the multiplier Y of the splitting X = Z (dimensionless), an optimality certificate:
+        Y is a subgradient of ||.||_* and lies (to the dual residual) in the row space of the
+        constraints; see :mod:`nldr.nrsfm.admm`. None for the cvxpy solvers.
+    duality_gap : float or None
+        ADMM only: ||X||_* minus a certified lower bound on the optimum (unit of the tracks).
     """
 
     X: np.ndarray
@@ -113,6 +125,8 @@ class TNHResult:
     reprojection_error: float
     max_abs_residual: float
     solver_options: dict = field(default_factory=dict)
+    dual: np.ndarray | None = None
+    duality_gap: float | None = None
 
     @property
     def success(self) -> bool:
@@ -158,6 +172,32 @@ class TraceNormHeuristic:
         nuclear = cp.normNuc(X)
         self._penalised = cp.Problem(cp.Minimize(self.tau * nuclear + cp.sum_squares(A @ self._x - b)))
         self._exact = cp.Problem(cp.Minimize(nuclear), [A @ self._x == b])
+        self._admm_last: TNHResult | None = None  # last ADMM solution, the warm start of the next
+
+    def _solve_admm(self, tau_value: float, solver_options, warm_start: bool, verbose: bool) -> TNHResult:
+        """Exact-fit TNH by :func:`~nldr.nrsfm.admm.tnh_admm` (no cvxpy compilation)."""
+        from .admm import ADMM_OPTIONS, tnh_admm  # admm imports TNHResult from this module
+
+        if tau_value != 0.0:
+            raise ValueError(
+                f"solver 'ADMM' solves the exact-fit form only (tau None or 0); got tau={tau_value:g}. "
+                f"Use a cvxpy solver (e.g. 'SCS') or nldr.nrsfm.proximal.tnh_proximal for tau > 0"
+            )
+        options = dict(solver_options or {})
+        unknown = sorted(set(options) - set(ADMM_OPTIONS))
+        if unknown:
+            raise ValueError(
+                f"unknown solver_options for ADMM: {unknown}; allowed: {sorted(ADMM_OPTIONS)} "
+                f"(verbose is the argument of solve)"
+            )
+        last = self._admm_last
+        if warm_start and last is not None and "X0" not in options and "Y0" not in options:
+            options.update(X0=last.X, Y0=last.dual)
+            options.setdefault("beta", last.solver_options["final_beta"])
+        term = self.data_term
+        result = tnh_admm(term.W, term.R, term.mask, verbose=verbose, **options)
+        self._admm_last = result
+        return result
 
     def solve(
         self,
@@ -176,11 +216,16 @@ class TraceNormHeuristic:
             Weight of ||X||_* against the sum of squared reprojection errors (the data's squared unit
             per unit of nuclear norm). None or 0 solves the exact-fit form.
         solver : str, default "SCS"
-            A cvxpy conic solver that handles semidefinite cones ("SCS", "CLARABEL", ...).
+            A cvxpy conic solver that handles semidefinite cones ("SCS", "CLARABEL", ...), or
+            ``"ADMM"`` for :func:`~nldr.nrsfm.admm.tnh_admm` (exact-fit form only).
         solver_options : dict, optional
             Passed to the solver, replacing :data:`DEFAULT_SOLVER_OPTIONS` for that solver key by key.
+            For ADMM: keyword arguments of :func:`~nldr.nrsfm.admm.tnh_admm` (``tol``, ``max_iter``,
+            ``beta``, ``X0``, ``Y0``, ``relaxation``, ``adaptive``).
         warm_start : bool, default False
-            Start from the previous solution (useful in tau sweeps with SCS).
+            Start from the previous solution (useful in tau sweeps with SCS; with ADMM the previous
+            ADMM solution, its multiplier and final penalty become ``X0``, ``Y0`` and ``beta`` unless
+            ``solver_options`` gives X0 or Y0).
         verbose : bool, default False
 
         Returns
@@ -192,9 +237,14 @@ class TraceNormHeuristic:
         TNHSolveError
             If the solver fails or the status is neither optimal nor optimal_inaccurate (a warning is
             issued for optimal_inaccurate).
+        ValueError
+            For an unknown solver, a negative tau, ``solver="ADMM"`` with tau > 0, unknown ADMM options
+            or an infeasible exact fit detected by ADMM (see :func:`~nldr.nrsfm.admm.tnh_admm`).
         """
         tau_value = 0.0 if tau is None else check_positive(tau, "tau", allow_zero=True)
         exact = tau_value == 0.0
+        if isinstance(solver, str) and solver.upper() == "ADMM":
+            return self._solve_admm(tau_value, solver_options, warm_start, verbose)
         if exact:
             problem = self._exact
         else:
@@ -202,7 +252,8 @@ class TraceNormHeuristic:
             problem = self._penalised
         if not isinstance(solver, str) or solver.upper() not in cp.installed_solvers():
             raise ValueError(
-                f"solver must be one of the installed cvxpy solvers {cp.installed_solvers()}; got {solver!r}"
+                f"solver must be 'ADMM' or one of the installed cvxpy solvers {cp.installed_solvers()}; "
+                f"got {solver!r}"
             )
         solver = solver.upper()
         options = {**DEFAULT_SOLVER_OPTIONS.get(solver, {}), **(solver_options or {})}
