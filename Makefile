@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 CORES ?= all
 
-.PHONY: setup reproduce quick test lint dryrun bench clean
+.PHONY: setup reproduce quick scale test lint dryrun bench clean
 
 $(BIN)/.installed: pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -22,6 +22,9 @@ reproduce: setup  ## every table and figure on the paper's protocol, the scoreca
 quick: setup  ## the same pipeline on the small protocol (config/quick.yaml)
 	$(BIN)/snakemake --cores $(CORES) --configfile config/quick.yaml
 
+scale: setup  ## extra targets beyond the paper: Table 2 on all 1000 oil rows, Table 3 on every frame
+	$(BIN)/snakemake --cores $(CORES) table2_full table3_full
+
 test: setup  ## the whole test suite (pipeline tests use config/quick.yaml)
 	$(BIN)/python -m pytest
 
@@ -32,8 +35,10 @@ lint: setup
 dryrun: setup
 	$(BIN)/snakemake -n
 
-bench: setup
+bench: setup  ## speed benchmarks, CSVs in results/benchmarks/ (docs/PERFORMANCE.md)
 	$(BIN)/python benchmarks/bench_closed_form.py
+	$(BIN)/python benchmarks/bench_solvers.py
+	$(BIN)/python benchmarks/profile_solvers.py
 
 clean:  ## remove generated results (not the data or the environment)
 	rm -rf results/tables results/figures results/runs results/notebooks results/benchmarks logs
