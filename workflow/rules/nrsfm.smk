@@ -47,6 +47,7 @@ use rule table3_run as table3_full_run with:
         regularizer=T3["regularizer"],
         tnh=T3F["tnh"],
         data_dir=lambda wildcards, input: data_dir_of(input.mocap),
+    threads: lambda wildcards: 2 if wildcards.seq == "drink" else 1  # 1102 x 1102 kernels: BLAS on 2 cores
     resources:
         mem_mb=4000,
         runtime=60,
