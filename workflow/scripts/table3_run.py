@@ -18,6 +18,7 @@ run = run_sequence(
     widths=tuple(sm.params.widths),
     tnh_options=dict(sm.params.tnh),
     progress=log.info,
+    n_jobs=sm.threads,  # width criteria in parallel when the rule has 2 threads (table3_full drink)
     **dict(sm.params.regularizer),
 )
 log.info("\n%s", run.rows.to_string())
