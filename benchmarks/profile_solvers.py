@@ -19,15 +19,9 @@ import pstats
 import time
 from pathlib import Path
 
-import numpy as np
+from bench_solvers import oil_problem, pickup_problem  # same problems as the before/after benchmark
 from threadpoolctl import threadpool_limits
 
-from nldr.data_terms import MaskedLeastSquares
-from nldr.datasets import load_mocap, load_oil
-from nldr.experiments.table2 import random_mask
-from nldr.experiments.table3 import WIDTHS
-from nldr.nrsfm import OrthographicReprojection, TraceNormHeuristic
-from nldr.nrsfm.layout import stack_to_rows
 from nldr.regularizer import minimize_regularized
 
 
@@ -50,27 +44,20 @@ def profile(fn, path: Path, title: str, top: int = 18) -> float:
 
 def main(data_dir, out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
-    X = load_oil("train", data_dir)[0][:100]
-    mask = random_mask(X.shape, 0.25, 2016)
-    S0 = np.where(mask, X, np.nanmean(np.where(mask, X, np.nan), axis=0))
-    term = MaskedLeastSquares(X, mask)
+    _, _, S0, term = oil_problem(data_dir, 100)
     with threadpool_limits(1):
         profile(
             lambda: minimize_regularized(term, S0, gamma=0.075, tau=0.1),
             out / "profile_table2.txt",
             "Table 2: Ours, oil flow 100 x 12, p = 0.25, seed 2016",
         )
-        seq = load_mocap("pickup", data_dir).subsample(10)
-        W2d = stack_to_rows(seq.W, dim=2)
-        tnh = TraceNormHeuristic(W2d, seq.R).solve()
-        data = OrthographicReprojection(W2d, seq.R)
-        gamma = WIDTHS["d_med"](tnh.X)
+        data, X0, gamma = pickup_problem(data_dir)
         profile(
             lambda: minimize_regularized(
-                data, tnh.X, gamma=gamma, tau=1e-4, rho0=1e-3, rho_growth=10.0, rho_max=10.0
+                data, X0, gamma=gamma, tau=1e-4, rho0=1e-3, rho_growth=10.0, rho_max=10.0
             ),
             out / "profile_table3.txt",
-            f"Table 3: kernel d_med on pickup (every 10th frame, {W2d.shape[0]} frames), full data",
+            f"Table 3: kernel d_med on pickup (every 10th frame, {X0.shape[0]} frames), full data",
         )
 
 

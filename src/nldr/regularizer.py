@@ -156,9 +156,13 @@ def _rbf(S: np.ndarray, gamma: float) -> np.ndarray:
     return np.exp(-gamma * squared_distances(S))
 
 
-def _spectrum(K: np.ndarray, tau: float, rho: float):
-    lam, U = np.linalg.eigh(K)
-    lam, U = lam[::-1], U[:, ::-1]  # decreasing, as in nldr.robust_kpca
+def _spectrum(K: np.ndarray, tau: float, rho: float, eigensolver: str = "full", expected=None):
+    """(lam, U, l) in decreasing order: every eigenpair ("full") or only those above the threshold."""
+    if eigensolver == "full":
+        lam, U = np.linalg.eigh(K)
+        lam, U = lam[::-1], U[:, ::-1]  # decreasing, as in nldr.robust_kpca
+    else:
+        lam, U = _leading_eigenpairs(K, _threshold(tau, rho), eigensolver, expected)
     return lam, U, _shrink(lam, tau, rho)
 
 
@@ -185,9 +189,7 @@ def _reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver="auto
         value = data_term.value(S) + 0.5 * rho * float(gap @ gap) + tau * float(l.sum())
         G = (U * (rho * gap)) @ U.T  # dE/dK = rho (K - C*^T C*), see the maintenance note
     else:
-        expected = None if hint is None else hint.rank
-        lam, U = _leading_eigenpairs(K, _threshold(tau, rho), eigensolver, expected)
-        l = _shrink(lam, tau, rho)
+        lam, U, l = _spectrum(K, tau, rho, eigensolver, None if hint is None else hint.rank)
         if hint is not None:
             hint.rank = lam.size
         UL = U[:, l > 0] * l[l > 0]  # C*^T, shape (n, r)
@@ -279,8 +281,8 @@ def optimal_kernel_factor(
     K = _rbf(S, gamma)
     if center:
         K = center_kernel(K)
-    lam, U = _leading_eigenpairs(K, _threshold(tau, rho), _check_eigensolver(eigensolver))
-    return _kernel_factor(_shrink(lam, tau, rho), U)
+    _, U, l = _spectrum(K, tau, rho, _check_eigensolver(eigensolver))
+    return _kernel_factor(l, U)
 
 
 def _kernel_factor(l: np.ndarray, U: np.ndarray) -> np.ndarray:
@@ -629,13 +631,8 @@ def _stage_alternation(
         K = _rbf(S, gamma)
         if center:
             K = center_kernel(K)
-        if eigensolver == "full":
-            lam, U, l = _spectrum(K, tau, rho)  # C-step
-            B = (U * l**2) @ U.T
-        else:
-            lam, U = _leading_eigenpairs(K, _threshold(tau, rho), eigensolver)  # C-step
-            l = _shrink(lam, tau, rho)
-            B = (U * l**2) @ U.T
+        lam, U, l = _spectrum(K, tau, rho, eigensolver)  # C-step
+        B = (U * l**2) @ U.T
         S, _ = _pre_image(
             S,
             B,
