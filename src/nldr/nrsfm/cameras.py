@@ -433,16 +433,20 @@ def quaternion_to_camera(q, *, jacobian: bool = False):
     return (R, J) if jacobian else R
 
 
+_H_FORMS_ROWS = _H_FORMS.reshape(24, 4)  # rows (c, k, i): E q is one (F, 4) x (4, 24) product
+
+
 def _quaternion_to_camera(q, jacobian):
-    n = np.einsum("fi,fi->f", q, q)
-    Eq = np.einsum("ckij,fj->fcki", _H_FORMS, q)  # E q, (F, 2, 3, 4)
-    H = np.einsum("fi,fcki->fck", q, Eq)
-    R = H / n[:, None, None]
+    F = q.shape[0]
+    inv = 1.0 / np.einsum("fi,fi->f", q, q)  # 1 / |q|^2
+    Eq = (q @ _H_FORMS_ROWS.T).reshape(F, 6, 4)  # E q, rows (c, k)
+    H = Eq @ q[:, :, None]  # (F, 6, 1)
+    R = (H[:, :, 0] * inv[:, None]).reshape(F, 2, 3)
     if not jacobian:
         return R, None
-    # d(H / n) = dH / n - H dn / n^2 with dH = 2 E q, dn = 2 q.
-    J = 2 * Eq / n[:, None, None, None] - 2 * H[..., None] * q[:, None, None, :] / n[:, None, None, None] ** 2
-    return R, J
+    # d(H / n) = dH / n - H dn / n^2 with dH = 2 E q, dn = 2 q: (2 / n) (E q - H q^T / n).
+    J = (2 * inv[:, None, None]) * (Eq - H * (q * inv[:, None])[:, None, :])
+    return R, J.reshape(F, 2, 3, 4)
 
 
 def camera_to_quaternion(R) -> np.ndarray:
@@ -498,7 +502,8 @@ def camera_to_quaternion(R) -> np.ndarray:
 
 
 def _frame_costs(Wf3, mask, R, Sf):
-    E = (Wf3 - np.einsum("fck,fkp->fcp", R, Sf)) * mask[:, None, :]
+    E = Wf3 - R @ Sf
+    E *= mask[:, None, :]
     return np.einsum("fcp,fcp->f", E, E), E
 
 
@@ -557,46 +562,80 @@ class CameraRefinementResult:
         return float(self.cost_history[-1])
 
 
+def _lm_normal_equations(J, C2, SE):
+    """J^T J (n, 4, 4) and -J^T r (n, 4) of the per-frame camera LM from 3x3 and 3x2 summaries.
+
+    With the residual r = mask o (W - R S) of a frame and D_i = dR/dq_i S (2 x P), the normal equations
+    need J^T J = sum D_i . D_j and J^T r = -sum D_i . E over the observed entries (E the masked residual).
+    With J_c (3 x 4) the camera Jacobian of image row c, C = S diag(mask) S^T (3 x 3, fixed while the
+    shapes are) and S E^T (3 x 2): J^T J = sum_c J_c^T C J_c and -J^T r = sum_c J_c^T (S E^T)[:, c], which
+    avoids the (2, P, 4) array D per frame. Stacking J_0 over J_1 (6 x 4), both are matrix products.
+
+    Parameters
+    ----------
+    J : array, shape (n, 2, 3, 4)
+        d R / d q.
+    C2 : array, shape (n, 6, 6)
+        Block diagonal diag(C, C).
+    SE : array, shape (n, 3, 2)
+        S E^T.
+    """
+    n = J.shape[0]
+    Js = J.reshape(n, 6, 4)
+    JtJ = Js.transpose(0, 2, 1) @ (C2 @ Js)
+    g = (SE.transpose(0, 2, 1).reshape(n, 1, 6) @ Js)[:, 0]
+    return JtJ, g
+
+
 def _refine_cameras(Wf3, mask, q, Sf, max_iter, ftol, xtol):
     """Batched LM over frames; Wf3 (F, 2, P) zero where unobserved, Sf (F, 3, P). Returns q, history, ..."""
     F = q.shape[0]
     q = q / np.linalg.norm(q, axis=1, keepdims=True)
     R, J = _quaternion_to_camera(q, True)
+    m3 = None if mask.all() else mask[:, None, :].astype(float)
+    C = (Sf if m3 is None else Sf * m3) @ Sf.transpose(0, 2, 1)  # S diag(mask) S^T, (F, 3, 3)
+    C2 = np.zeros((F, 6, 6))
+    C2[:, :3, :3] = C2[:, 3:, 3:] = C
     cost, E = _frame_costs(Wf3, mask, R, Sf)
+    SE = Sf @ E.transpose(0, 2, 1)  # S E^T, (F, 3, 2)
     scale = np.einsum("fcp,fcp->f", Wf3, Wf3) + 1e-300
     lam = np.full(F, 1e-3)
     active = np.ones(F, dtype=bool)
     history = [float(cost.sum())]
-    eye = np.eye(4)
     n_iter = 0
     for n_iter in range(1, max_iter + 1):  # noqa: B007 (n_iter is reported)
         idx = np.flatnonzero(active)
-        # Residual r = mask o (W - R S): dr/dq_i = -mask o (dR/dq_i S), so with D_i = dR/dq_i S:
-        # J^T J = sum D_i . D_j over observed entries, J^T r = -sum D_i . E.
-        D = np.einsum("fcki,fkp->fcpi", J[idx], Sf[idx]) * mask[idx][:, None, :, None]
-        JtJ = np.einsum("fcpi,fcpj->fij", D, D)
-        g = np.einsum("fcpi,fcp->fi", D, E[idx])  # = -J^T r
-        diag = np.einsum("fii->fi", JtJ)
+        rows = slice(None) if idx.size == F else idx  # views while every frame is active
+        qi, cost_i, lam_i, S_i = q[rows], cost[idx], lam[idx], Sf[rows]
+        JtJ, g = _lm_normal_equations(J[rows], C2[rows], SE[rows])  # g = -J^T r
+        diag = JtJ.diagonal(axis1=1, axis2=2)
         # J q = 0 (scale invariance): penalising the radial component keeps the system regular and the
-        # step tangent to the unit sphere.
-        radial = np.einsum("fi,fj->fij", q[idx], q[idx]) * (diag.max(axis=1) + 1e-300)[:, None, None]
-        A = JtJ + radial + lam[idx, None, None] * (diag[:, :, None] * eye + 1e-12 * eye)
-        step = np.linalg.solve(A, g[..., None])[..., 0]
-        q_new = q[idx] + step
-        q_new /= np.linalg.norm(q_new, axis=1, keepdims=True)
+        # step tangent to the unit sphere. Marquardt damping lam (diag(J^T J) + 1e-12).
+        A = JtJ + (qi[:, :, None] * qi[:, None, :]) * (diag.max(axis=1) + 1e-300)[:, None, None]
+        A.reshape(-1, 16)[:, ::5] += lam_i[:, None] * (diag + 1e-12)
+        step = np.linalg.solve(A, g[..., None])
+        # decrease of the Gauss-Newton model ||r + J step||^2, relative
+        predicted = (2 * g - (JtJ @ step)[..., 0]) * step[..., 0]
+        predicted = predicted.sum(axis=1) / np.maximum(cost_i, 1e-300)
+        step = step[..., 0]
+        step_norm = np.sqrt(np.einsum("fi,fi->f", step, step))
+        q_new = qi + step
+        q_new /= np.sqrt(np.einsum("fi,fi->f", q_new, q_new))[:, None]
         R_new, J_new = _quaternion_to_camera(q_new, True)
-        cost_new, E_new = _frame_costs(Wf3[idx], mask[idx], R_new, Sf[idx])
-        better = cost_new < cost[idx]
+        E_new = Wf3[rows] - R_new @ S_i
+        if m3 is not None:
+            E_new *= m3[rows]
+        cost_new = np.einsum("fcp,fcp->f", E_new, E_new)
+        better = cost_new < cost_i
+        decrease = (cost_i - cost_new) / np.maximum(cost_i, 1e-300)
         acc = idx[better]
-        decrease = (cost[idx] - cost_new) / np.maximum(cost[idx], 1e-300)
-        small_step = np.linalg.norm(step, axis=1) <= xtol
-        q[acc], R[acc], J[acc], E[acc] = q_new[better], R_new[better], J_new[better], E_new[better]
-        cost[acc] = cost_new[better]
-        lam[acc] = np.maximum(lam[acc] / 3, 1e-12)
-        lam[idx[~better]] *= 4
-        done = (
-            (better & (decrease <= ftol)) | small_step | (cost[idx] <= 1e-30 * scale[idx]) | (lam[idx] > 1e16)
-        )
+        q[acc], R[acc], J[acc], cost[acc] = q_new[better], R_new[better], J_new[better], cost_new[better]
+        SE[acc] = S_i[better] @ E_new[better].transpose(0, 2, 1)
+        lam[idx] = np.where(better, np.maximum(lam_i / 3, 1e-12), lam_i * 4)
+        # converged: an accepted step gained <= ftol, or a rejected one lost <= ftol where the model
+        # promised <= ftol (the change is rounding; MINPACK's test), or the step or the cost vanished
+        done = np.where(better, decrease <= ftol, (-decrease <= ftol) & (predicted <= ftol))
+        done |= (step_norm <= xtol) | (cost[idx] <= 1e-30 * scale[idx]) | (lam[idx] > 1e16)
         active[idx[done]] = False
         history.append(float(cost.sum()))
         if not active.any():
@@ -616,8 +655,10 @@ def refine_cameras(
     Minimises sum_f sum_j mask_fj ||w_f(x_j) - R(q_f) s_f(x_j)||^2 over q_1..q_F. Given the shapes
     the frames decouple, so LM runs on all frames at once with a damping factor per frame (one
     batched 4x4 solve per iteration; a frame stops when its step is accepted with a relative cost
-    decrease <= ftol, or its step is <= xtol). Steps are taken in q and renormalised; the radial
-    direction, along which the cost is constant, is penalised in the normal equations.
+    decrease <= ftol, when a step is rejected with a relative cost increase <= ftol although the
+    Gauss-Newton model predicted a relative decrease <= ftol (the cost no longer changes beyond
+    rounding, MINPACK's ftol test), or when its step is <= xtol). Steps are taken in q and renormalised;
+    the radial direction, along which the cost is constant, is penalised in the normal equations.
 
     Parameters
     ----------
