@@ -25,7 +25,28 @@ def setup(snakemake) -> logging.Logger:
         handlers.append(logging.FileHandler(log_file, mode="w"))
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", handlers=handlers, force=True)
     threadpool_limits(int(getattr(snakemake, "threads", 1) or 1))
-    return logging.getLogger(snakemake.rule)
+    log = logging.getLogger(snakemake.rule)
+    log.info("compute: %s", compute_fingerprint())
+    return log
+
+
+def compute_fingerprint() -> str:
+    """One line naming what decides the floating-point bits of a run: the BLAS libraries with their
+    kernel architecture and thread count, and the CPU features numpy dispatches on. Two runs whose
+    tables differ in the last digits can be compared by this line in their logs."""
+    import numpy as np
+    from threadpoolctl import threadpool_info
+
+    libs = ", ".join(
+        f"{i.get('internal_api')} {i.get('version')} {i.get('architecture') or '-'} x{i.get('num_threads')}"
+        for i in threadpool_info()
+    )
+    try:
+        from numpy._core._multiarray_umath import __cpu_features__ as features
+    except ImportError:  # numpy < 2
+        from numpy.core._multiarray_umath import __cpu_features__ as features
+    top = [name for name in ("AVX512_SKX", "AVX512F", "AVX2", "FMA3") if features.get(name)]
+    return f"numpy {np.__version__} [{' '.join(top) or 'baseline'}]; {libs}"
 
 
 @contextmanager
