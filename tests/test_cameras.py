@@ -150,6 +150,25 @@ def test_initialize_cameras_on_deforming_shapes_gives_orthonormal_cameras():
     assert R.shape == R_true.shape and row_gram_error(R) < 1e-10
 
 
+@pytest.mark.parametrize("missing", [False, True])
+def test_initialize_cameras_repeats_bit_for_bit(missing):
+    """Identical inputs give identical bits on every call, whatever the heap held before.
+
+    Table 4's tuned numbers move by 1e-7 (TNH) to 1e-4 (kernel columns) for a one-ulp change of the
+    start, so byte-identical tables need a bit-reproducible camera initialisation. With scipy's MINPACK
+    ("lm", the previous solver) 26 of these 40 repeats differed from the first call on full data."""
+    W, _, _ = deforming_scene(n_frames=30, n_points=20, seed=4)
+    mask = random_visibility_mask(30, 20, 0.4, 1) if missing else None
+    if missing:
+        W = hide(W, mask)
+    first = initialize_cameras(W, mask)
+    rng = np.random.default_rng(0)
+    for _ in range(40):
+        junk = [np.full(n, rng.standard_normal()) for n in (9, 27, 90, 108, 216, 1000)]  # reused memory
+        del junk
+        assert np.array_equal(initialize_cameras(W, mask), first)
+
+
 # ---------------------------------------------------------------------------------------------------------
 # metric upgrade
 
