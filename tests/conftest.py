@@ -33,3 +33,28 @@ def random_rotation(rng) -> np.ndarray:
     Q, Rq = np.linalg.qr(rng.standard_normal((3, 3)))
     Q = Q * np.sign(np.diag(Rq))
     return Q if np.linalg.det(Q) > 0 else -Q
+
+
+# NRSfM test scenes: shapes as rows X (F, 3P), cameras R (F, 2, 3), image tracks W (F, 2P).
+
+
+def project(R, X) -> np.ndarray:
+    """Image tracks (F, 2P) of shapes X (F, 3P) under cameras R (F, 2, 3)."""
+    F, P = X.shape[0], X.shape[1] // 3
+    return np.einsum("fck,fkp->fcp", R, X.reshape(F, 3, P)).reshape(F, 2 * P)
+
+
+def nuclear_norm(X) -> float:
+    return float(np.linalg.svd(X, compute_uv=False).sum())
+
+
+def synthetic_sequence(n_frames=12, n_points=9, rank=2, seed=0):
+    """Shapes from a rank-`rank` linear basis around a mean shape, random rotation cameras, exact tracks.
+
+    Returns (X (F, 3P), W (F, 2P), R (F, 2, 3))."""
+    rng = np.random.default_rng(seed)
+    basis = rng.standard_normal((rank + 1, 3 * n_points))
+    coeffs = np.column_stack([np.ones(n_frames), 0.5 * rng.standard_normal((n_frames, rank))])
+    X = coeffs @ basis
+    R = np.stack([random_rotation(rng)[:2] for _ in range(n_frames)])
+    return X, project(R, X), R

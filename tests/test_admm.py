@@ -6,7 +6,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import random_rotation
+from conftest import nuclear_norm, project, synthetic_sequence
 
 from nldr.nrsfm import TraceNormHeuristic, tnh_admm
 from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
@@ -21,25 +21,6 @@ NUCLEAR_RTOL = 10 * TOL
 # missing problem below X is off by 5e-5 relative (the optimum has singular values ~1e-5, so X is
 # loosely determined by ||X||_*); at 1e-10 it matches ADMM at TOL to ~3e-6 on these problems.
 CLARABEL_TIGHT = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10}
-
-
-def low_rank_sequence(n_frames=10, n_points=6, rank=2, seed=0):
-    """Shapes = mean + rank-`rank` deformation, random rotation cameras, exact image tracks."""
-    rng = np.random.default_rng(seed)
-    basis = rng.standard_normal((rank + 1, 3 * n_points))
-    coeffs = np.column_stack([np.ones(n_frames), 0.5 * rng.standard_normal((n_frames, rank))])
-    X = coeffs @ basis
-    R = np.stack([random_rotation(rng)[:2] for _ in range(n_frames)])
-    return X, project(R, X), R
-
-
-def project(R, X):
-    F, P = X.shape[0], X.shape[1] // 3
-    return np.einsum("fck,fkp->fcp", R, X.reshape(F, 3, P)).reshape(F, 2 * P)
-
-
-def nuclear_norm(X):
-    return float(np.linalg.svd(X, compute_uv=False).sum())
 
 
 def null_space_component(Y, R, mask):
@@ -60,7 +41,7 @@ def null_space_component(Y, R, mask):
 
 @pytest.mark.parametrize("missing", [0.0, 0.4])
 def test_admm_matches_clarabel_exact_fit(missing):
-    X, W, R = low_rank_sequence(seed=3)
+    X, W, R = synthetic_sequence(n_frames=10, n_points=6, seed=3)
     F, P = X.shape[0], X.shape[1] // 3
     mask = random_visibility_mask(F, P, missing, random_state=3)
     W = np.where(np.concatenate([mask, mask], axis=1), W, np.nan)  # unobserved entries may be NaN
@@ -94,7 +75,7 @@ def test_admm_matches_clarabel_exact_fit(missing):
 def test_admm_dual_is_an_optimality_certificate(missing):
     """X is optimal iff some Y lies both in the subdifferential of ||.||_* at X (||Y||_2 <= 1 and
     <Y, X> = ||X||_*) and in the range of A^T (orthogonal to the null space of the constraints)."""
-    X_true, W, R = low_rank_sequence(n_frames=12, n_points=7, rank=2, seed=5)
+    X_true, W, R = synthetic_sequence(n_frames=12, n_points=7, rank=2, seed=5)
     F, P = X_true.shape[0], X_true.shape[1] // 3
     mask = random_visibility_mask(F, P, missing, random_state=5)
     res = tnh_admm(W, R, mask, tol=TOL, max_iter=100_000)
@@ -124,7 +105,7 @@ def test_admm_dual_is_an_optimality_certificate(missing):
 
 
 def test_admm_rank_deficient_camera_uses_the_pseudo_inverse():
-    X, W, R = low_rank_sequence(seed=7)
+    X, W, R = synthetic_sequence(n_frames=10, n_points=6, seed=7)
     R = R.copy()
     R[2] = [[1.0, 0.0, 0.0], [2.0, 0.0, 0.0]]  # rank 1: sees only the x coordinate
     W = project(R, X)  # consistent tracks: an exact fit exists
@@ -145,7 +126,7 @@ def test_admm_rank_deficient_camera_uses_the_pseudo_inverse():
 
 
 def test_admm_iteration_cap_warm_start_and_dispatch():
-    X, W, R = low_rank_sequence(seed=9)
+    X, W, R = synthetic_sequence(n_frames=10, n_points=6, seed=9)
     with pytest.warns(RuntimeWarning, match="optimal_inaccurate"):
         capped = tnh_admm(W, R, max_iter=5)
     assert capped.status == "optimal_inaccurate" and not capped.success and capped.n_iter == 5
@@ -172,7 +153,7 @@ def test_admm_iteration_cap_warm_start_and_dispatch():
 
 
 def test_admm_input_errors():
-    X, W, R = low_rank_sequence(n_frames=5, n_points=4, seed=11)
+    X, W, R = synthetic_sequence(n_frames=5, n_points=4, seed=11)
     mask = np.ones((5, 4), dtype=bool)
     cases = [
         ((W[:, :-1], R), {}, "W2d"),

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import random_rotation
+from conftest import project, random_rotation
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
@@ -41,11 +41,6 @@ from nldr.nrsfm.reprojection import OrthographicReprojection
 def random_orthogonal(rng, det: int) -> np.ndarray:
     """A random 3x3 orthogonal matrix with determinant ``det`` (+1 rotation, -1 rotation and reflection)."""
     return random_rotation(rng) @ np.diag([1.0, 1.0, float(det)])
-
-
-def project(R, X) -> np.ndarray:
-    F, P = X.shape[0], X.shape[1] // 3
-    return np.einsum("fck,fkp->fcp", R, X.reshape(F, 3, P)).reshape(F, 2 * P)
 
 
 def rigid_scene(n_frames=20, n_points=15, seed=0):

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import random_rotation
+from conftest import nuclear_norm, project, random_rotation, synthetic_sequence
 
 from nldr.data_terms import DataTerm
 from nldr.nrsfm.layout import (
@@ -24,26 +24,6 @@ from nldr.nrsfm.tnh import TNHSolveError, TraceNormHeuristic, trace_norm_heurist
 
 # ---------------------------------------------------------------------------------------------------------
 # helpers
-
-
-def synthetic_sequence(n_frames=12, n_points=9, rank=2, seed=0):
-    """Shapes from a rank-`rank` linear basis around a mean shape, random rotation cameras."""
-    rng = np.random.default_rng(seed)
-    basis = rng.standard_normal((rank + 1, 3 * n_points))
-    coeffs = np.column_stack([np.ones(n_frames), 0.5 * rng.standard_normal((n_frames, rank))])
-    X = coeffs @ basis
-    R = np.stack([random_rotation(rng)[:2] for _ in range(n_frames)])
-    W = project(R, X)
-    return X, W, R
-
-
-def project(R, X):
-    F, P = X.shape[0], X.shape[1] // 3
-    return np.einsum("fck,fkp->fcp", R, X.reshape(F, 3, P)).reshape(F, 2 * P)
-
-
-def nuclear_norm(X):
-    return float(np.linalg.svd(X, compute_uv=False).sum())
 
 
 def load_real(name: str):

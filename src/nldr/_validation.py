@@ -33,6 +33,13 @@ def check_positive(value, name: str, *, allow_zero: bool = False) -> float:
     return x
 
 
+def check_count(value, name: str) -> int:
+    """Return ``value`` as an int; a ValueError naming it unless it is an integer >= 1 (bools refused)."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise ValueError(f"{name} must be a positive integer; got {value!r}")
+    return int(value)
+
+
 def check_symmetric_kernel(K, name: str = "K", *, rtol: float = 1e-8) -> np.ndarray:
     """Return a square, finite, symmetric float matrix (symmetrised exactly) or raise a ValueError."""
     K = as_float_matrix(K, name)

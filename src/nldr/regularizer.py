@@ -59,7 +59,7 @@ import scipy.sparse as sp
 from scipy.optimize import least_squares, minimize
 from scipy.sparse.linalg import LinearOperator, aslinearoperator
 
-from ._validation import as_float_matrix, check_positive
+from ._validation import as_float_matrix, check_count, check_positive
 from .data_terms import DataTerm
 from .kernels import center_kernel, rbf_kernel_vjp, squared_distances
 from .robust_kpca import _check_eigensolver, _leading_eigenpairs, _shrink, _threshold
@@ -543,7 +543,7 @@ def pre_image_step(
     C = as_float_matrix(C, "C")
     if C.shape[1] != S.shape[0]:
         raise ValueError(f"C must have {S.shape[0]} columns (one per sample); got shape {C.shape}")
-    max_iter = _check_count(max_iter, "max_iter")
+    max_iter = check_count(max_iter, "max_iter")
     tol = check_positive(tol, "tol")
     if jacobian not in _JACOBIANS:
         raise ValueError(f"jacobian must be one of {_JACOBIANS}; got {jacobian!r}")
@@ -567,12 +567,6 @@ def pre_image_step(
 # --------------------------------------------------------------------------------------------------
 # The penalty method
 # --------------------------------------------------------------------------------------------------
-
-
-def _check_count(value, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        raise ValueError(f"{name} must be a positive integer; got {value!r}")
-    return int(value)
 
 
 def _rho_schedule(rho0: float, growth: float, rho_max: float) -> list[float]:
@@ -754,12 +748,12 @@ def minimize_regularized(
         raise ValueError(f"rho_max must be >= rho0 = {rho0!r}; got {rho_max!r}")
     if max_inner is None:
         max_inner = 3000 if method == "reduced" else 100
-    max_inner = _check_count(max_inner, "max_inner")
+    max_inner = check_count(max_inner, "max_inner")
     if tol is None:
         tol = 1e-10 if method == "reduced" else 1e-6
     tol = check_positive(tol, "tol")
     gtol = check_positive(gtol, "gtol")
-    lm_max_iter = _check_count(lm_max_iter, "lm_max_iter")
+    lm_max_iter = check_count(lm_max_iter, "lm_max_iter")
     lm_tol = check_positive(lm_tol, "lm_tol")
     eigensolver = _check_eigensolver(eigensolver)
     center = bool(center)

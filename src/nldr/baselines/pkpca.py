@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from .._validation import as_float_matrix, check_positive
+from .._validation import as_float_matrix, check_count, check_positive
 from ..kernels import rbf_kernel_vjp, squared_distances
 from .mean import _check_masked_matrix, _mean_fill
 
@@ -182,9 +182,8 @@ def pkpca_impute(
         raise ValueError(f"extra_components must be a non-negative integer; got {extra_components!r}")
     if extra_components < 0:
         raise ValueError(f"extra_components must be a non-negative integer; got {extra_components!r}")
-    for name, value in (("max_iter", max_iter), ("inner_max_iter", inner_max_iter)):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-            raise ValueError(f"{name} must be a positive integer; got {value!r}")
+    check_count(max_iter, "max_iter")
+    check_count(inner_max_iter, "inner_max_iter")
     gtol = check_positive(gtol, "gtol")
 
     X = _mean_fill(W, mask)

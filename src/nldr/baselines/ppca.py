@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._validation import check_count
 from .mean import _check_masked_matrix, _mean_fill
 
 _NOISE_FLOOR = 1e-6  # sigma^2 >= this times the mean column variance of the mean-imputed data
@@ -199,8 +200,7 @@ def ppca_impute(
         raise ValueError(f"n_components must be an integer; got {n_components!r}")
     if not 1 <= n_components < d:
         raise ValueError(f"n_components must satisfy 1 <= n_components < d = {d}; got {n_components}")
-    if isinstance(max_iter, bool) or not isinstance(max_iter, int | np.integer) or max_iter < 1:
-        raise ValueError(f"max_iter must be a positive integer; got {max_iter!r}")
+    check_count(max_iter, "max_iter")
     if not (np.isfinite(tol) and tol >= 0):
         raise ValueError(f"tol must be finite and >= 0; got {tol!r}")
     q = int(n_components)

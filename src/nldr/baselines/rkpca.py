@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from .._validation import as_float_matrix, check_positive
+from .._validation import as_float_matrix, check_count, check_positive
 from ..kernels import center_kernel, squared_distances
 from .mean import _check_masked_matrix, _mean_fill
 
@@ -296,9 +296,8 @@ def rkpca_impute(
         raise ValueError(f"W needs at least 3 rows for KPCA; got {n}")
     _check_n_components(n_components, n)
     weight = _check_weight(weight)
-    for name, value in (("max_iter", max_iter), ("inner_max_iter", inner_max_iter)):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-            raise ValueError(f"{name} must be a positive integer; got {value!r}")
+    check_count(max_iter, "max_iter")
+    check_count(inner_max_iter, "inner_max_iter")
     gtol = check_positive(gtol, "gtol")
 
     Y = _mean_fill(W, mask)

@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
-from .._validation import check_positive
+from .._validation import check_count, check_positive
 from ..kernels import d_max_width, d_med_width
 from ..nrsfm import OrthographicReprojection, TraceNormHeuristic, e3d, random_visibility_mask, stack_to_rows
 from ..regularizer import minimize_regularized
@@ -206,8 +206,7 @@ def run_sequence(
     if unknown or not widths:
         raise ValueError(f"widths must be a non-empty subset of {tuple(WIDTHS)}; got {widths!r}")
     solver, solver_options = _tnh_call_options(tnh_options)
-    if isinstance(n_jobs, bool) or not isinstance(n_jobs, int | np.integer) or n_jobs < 1:
-        raise ValueError(f"n_jobs must be a positive integer; got {n_jobs!r}")
+    n_jobs = check_count(n_jobs, "n_jobs")
     regularizer_options = dict(
         tau=check_positive(tau, "tau"),
         center=bool(center),
@@ -268,7 +267,7 @@ def run_sequence(
 
     jobs = [(data_term, tnh.X, WIDTHS[width](tnh.X), regularizer_options) for width in widths]
     if n_jobs > 1 and len(jobs) > 1:
-        with ProcessPoolExecutor(max_workers=min(int(n_jobs), len(jobs))) as pool:
+        with ProcessPoolExecutor(max_workers=min(n_jobs, len(jobs))) as pool:
             solved = list(pool.map(_kernel_solve_in_worker, jobs))
     else:
         solved = [_kernel_solve(job) for job in jobs]

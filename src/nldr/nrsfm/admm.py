@@ -87,7 +87,8 @@ import warnings
 
 import numpy as np
 
-from .._validation import as_float_matrix, check_positive
+from .._validation import as_float_matrix, check_count, check_positive
+from .proximal import _soft_threshold_singular_values
 from .reprojection import OrthographicReprojection
 from .tnh import TNHResult
 
@@ -110,12 +111,6 @@ def _pinv_cameras(R: np.ndarray) -> np.ndarray:
     cutoff = _RCOND * s[:, :1]
     inv = np.divide(1.0, s, out=np.zeros_like(s), where=(s > cutoff) & (s > 0))
     return np.einsum("fkc,fc,fdc->fkd", Vt.transpose(0, 2, 1), inv, U)
-
-
-def _check_int(value, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        raise ValueError(f"{name} must be a positive integer; got {value!r}")
-    return int(value)
 
 
 def tnh_admm(
@@ -198,7 +193,7 @@ def tnh_admm(
     tol = check_positive(tol, "tol")
     if tol >= 1.0:
         raise ValueError(f"tol must be in (0, 1); got {tol!r}")
-    max_iter = _check_int(max_iter, "max_iter")
+    max_iter = check_count(max_iter, "max_iter")
     beta0 = 1.0 if beta is None else check_positive(beta, "beta")
     beta = beta0
     alpha = check_positive(relaxation, "relaxation")
@@ -258,10 +253,7 @@ def tnh_admm(
         X = project_feasible(Z - U)
         H = alpha * X + (1.0 - alpha) * Z
         V = H + U
-        Uv, sv, Vt = np.linalg.svd(V, full_matrices=False)
-        sv = sv - 1.0 / beta
-        k = int(np.count_nonzero(sv > 0))
-        Z = (Uv[:, :k] * sv[:k]) @ Vt[:k]
+        Z, z_nuclear = _soft_threshold_singular_values(V, 1.0 / beta)
         U = V - Z
 
         check = it % _ADAPT_EVERY == 0 or it == max_iter
@@ -272,7 +264,10 @@ def tnh_admm(
         r_rel = float(np.linalg.norm(X - Z)) / max(norm_x, norm_z, 1e-300)
         s_rel = float(np.linalg.norm(project_null(Y))) / max(norm_y, 1e-300)
         if verbose and it % 100 == 0:
-            print(f"ADMM {it:6d}  primal {r_rel:.2e}  dual {s_rel:.2e}  beta {beta:.3g}  rank {k}")
+            print(
+                f"ADMM {it:6d}  primal {r_rel:.2e}  dual {s_rel:.2e}  beta {beta:.3g}  "
+                f"||Z||_* {z_nuclear:.6g}"
+            )
         if r_rel <= tol and s_rel <= tol:
             gap, nuclear = _duality_gap(X, Y, project_null)
             if gap <= tol * nuclear:

@@ -35,9 +35,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from .._validation import as_float_matrix, check_positive
+from .._validation import as_float_matrix, check_count, check_positive
 from .metrics import center_per_frame, procrustes_rotation
-from .reprojection import check_cameras, check_visibility_mask
+from .reprojection import _masked_residual, _visibility_weights, check_cameras, check_visibility_mask
 
 __all__ = [
     "RigidFactorization",
@@ -89,12 +89,6 @@ def _check_shapes(X, F: int, P: int, name: str = "X") -> np.ndarray:
     if X.shape != (F, 3 * P):
         raise ValueError(f"{name} must have shape (F, 3P) = {(F, 3 * P)}; got {X.shape}")
     return X
-
-
-def _check_count(value, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        raise ValueError(f"{name} must be a positive integer; got {value!r}")
-    return int(value)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -213,7 +207,7 @@ def rigid_factorization(W2d, mask=None, *, max_iter: int = 500, tol: float = 1e-
         If ``W2d`` or ``mask`` is malformed or a frame has fewer than 3 observed points.
     """
     W, mask = _check_tracks(W2d, mask)
-    max_iter = _check_count(max_iter, "max_iter")
+    max_iter = check_count(max_iter, "max_iter")
     tol = check_positive(tol, "tol")
     F, P = mask.shape
     Wf3 = W.reshape(F, 2, P)
@@ -606,7 +600,7 @@ def _refine_cameras(Wf3, mask, q, Sf, max_iter, ftol, xtol):
     F = q.shape[0]
     q = q / np.linalg.norm(q, axis=1, keepdims=True)
     R, J = _quaternion_to_camera(q, True)
-    m3 = None if mask.all() else mask[:, None, :].astype(float)
+    m3 = _visibility_weights(mask)
     C = (Sf if m3 is None else Sf * m3) @ Sf.transpose(0, 2, 1)  # S diag(mask) S^T, (F, 3, 3)
     C2 = np.zeros((F, 6, 6))
     C2[:, :3, :3] = C2[:, 3:, 3:] = C
@@ -636,9 +630,7 @@ def _refine_cameras(Wf3, mask, q, Sf, max_iter, ftol, xtol):
         q_new = qi + step
         q_new /= np.sqrt(np.einsum("fi,fi->f", q_new, q_new))[:, None]
         R_new, J_new = _quaternion_to_camera(q_new, True)
-        E_new = Wf3[rows] - R_new @ S_i
-        if m3 is not None:
-            E_new *= m3[rows]
+        E_new = _masked_residual(Wf3[rows], None if m3 is None else m3[rows], R_new, S_i)
         cost_new = np.einsum("fcp,fcp->f", E_new, E_new)
         better = cost_new < cost_i
         decrease = (cost_i - cost_new) / np.maximum(cost_i, 1e-300)
@@ -696,7 +688,7 @@ def refine_cameras(
     F, P = mask.shape
     R0 = check_cameras(R0, F, name="R0")
     X = _check_shapes(X, F, P)
-    max_iter = _check_count(max_iter, "max_iter")
+    max_iter = check_count(max_iter, "max_iter")
     ftol, xtol = check_positive(ftol, "ftol"), check_positive(xtol, "xtol")
     q0 = camera_to_quaternion(R0)
     q, R, history, cost, n_iter, ok, msg = _refine_cameras(
@@ -849,11 +841,11 @@ def refine_cameras_and_shapes(
         raise ValueError(
             f"shape_step must be a callable R (F, 2, 3) -> X (F, 3P); got {type(shape_step).__name__}"
         )
-    max_outer = _check_count(max_outer, "max_outer")
+    max_outer = check_count(max_outer, "max_outer")
     tol = check_positive(tol, "tol")
-    camera_max_iter = _check_count(camera_max_iter, "camera_max_iter")
+    camera_max_iter = check_count(camera_max_iter, "camera_max_iter")
     camera_ftol = check_positive(camera_ftol, "camera_ftol")
-    window = _check_count(window, "window")
+    window = check_count(window, "window")
     Wf3 = W.reshape(F, 2, P)
     q = camera_to_quaternion(R)
     history, shape_history, energy = [], [], []

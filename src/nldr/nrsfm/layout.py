@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._validation import as_float_matrix, check_positive
+from .._validation import as_float_matrix, check_count, check_positive
 
 __all__ = [
     "stack_to_rows",
@@ -134,6 +134,4 @@ def _check_dim(dim) -> int:
 
 
 def _check_n_points(P, name: str = "P") -> int:
-    if isinstance(P, bool) or not isinstance(P, int | np.integer) or P < 1:
-        raise ValueError(f"{name} must be a positive integer; got {P!r}")
-    return int(P)
+    return check_count(P, name)

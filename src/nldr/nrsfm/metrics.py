@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._validation import as_float_matrix
+from .._validation import as_float_matrix, check_count
 
 __all__ = ["e3d", "e3d_per_frame", "ground_truth_sigma", "center_per_frame", "procrustes_rotation"]
 
@@ -46,9 +46,7 @@ def _as_shapes(X, name: str, P: int) -> np.ndarray:
 
 
 def _check_P(P) -> int:
-    if isinstance(P, bool) or not isinstance(P, int | np.integer) or P < 1:
-        raise ValueError(f"P (number of points) must be a positive integer; got {P!r}")
-    return int(P)
+    return check_count(P, "P (number of points)")
 
 
 def center_per_frame(X, P: int) -> np.ndarray:

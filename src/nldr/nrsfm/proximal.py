@@ -42,8 +42,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validation import as_float_matrix, check_positive
-from .reprojection import OrthographicReprojection
+from .._validation import as_float_matrix, check_count, check_positive
+from .reprojection import OrthographicReprojection, _masked_residual, _visibility_weights
 
 __all__ = ["ProximalTNHResult", "tnh_proximal"]
 
@@ -181,10 +181,7 @@ def _fista(
     thresh = step * tau
 
     def residual(S):
-        E = W3 - R @ S
-        if m3 is not None:
-            E *= m3
-        return E
+        return _masked_residual(W3, m3, R, S)
 
     E_x = residual(X)
     f_prev = tau * x_nuclear + float(np.vdot(E_x, E_x))
@@ -259,8 +256,7 @@ def tnh_proximal(
     term = OrthographicReprojection(W2d, R, mask)  # validates the tracks, cameras and mask
     tau = check_positive(tau, "tau")
     tol = check_positive(tol, "tol")
-    if isinstance(max_iter, bool) or not isinstance(max_iter, int | np.integer) or max_iter < 1:
-        raise ValueError(f"max_iter must be a positive integer; got {max_iter!r}")
+    max_iter = check_count(max_iter, "max_iter")
     F, P = term.n_frames, term.n_points
     if X0 is None:
         X, x_nuclear = np.zeros((F, 3, P)), 0.0
@@ -270,8 +266,8 @@ def tnh_proximal(
             raise ValueError(f"X0 must have shape (F, 3P) = {term.shape}; got {X.shape}")
         x_nuclear = float(np.linalg.svd(X, compute_uv=False).sum())
         X = X.reshape(F, 3, P)
-    m3 = None if term.mask.all() else term.mask[:, None, :].astype(float)
-    out = _fista(term.W.reshape(F, 2, P), m3, term.R, X, x_nuclear, tau, int(max_iter), tol)
+    m3 = _visibility_weights(term.mask)
+    out = _fista(term.W.reshape(F, 2, P), m3, term.R, X, x_nuclear, tau, max_iter, tol)
     return ProximalTNHResult(
         X=out.X.reshape(F, 3 * P),
         objective=tau * out.nuclear_norm + out.reprojection_error,

@@ -129,3 +129,20 @@ class OrthographicReprojection:
         F, P = self.n_frames, self.n_points
         E = np.where(self._mask2, self.W - self.project(X), 0.0).reshape(F, 2, P)
         return -2.0 * np.einsum("fck,fcp->fkp", self.R, E).reshape(self.shape)
+
+
+# The batched per-frame form used by the first-order TNH and the camera LM (no sparse Jacobian):
+# tracks W3 (F, 2, P) zero where unobserved, shapes S (F, 3, P), cameras R (F, 2, 3).
+
+
+def _visibility_weights(mask: np.ndarray) -> np.ndarray | None:
+    """Visibility (F, P) as 0.0/1.0 weights (F, 1, P) broadcasting over image rows; None if all observed."""
+    return None if mask.all() else mask[:, None, :].astype(float)
+
+
+def _masked_residual(W3: np.ndarray, m3: np.ndarray | None, R: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """mask o (W - R S) per frame, shape (F, 2, P), with ``m3`` from :func:`_visibility_weights`."""
+    E = W3 - R @ S
+    if m3 is not None:
+        E *= m3
+    return E

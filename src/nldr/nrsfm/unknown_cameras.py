@@ -33,9 +33,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from .._validation import check_positive
+from .._validation import check_count, check_positive
 from .cameras import CameraShapeResult, _check_tracks, refine_cameras_and_shapes
 from .proximal import _fista, _soft_threshold_gram, _soft_threshold_singular_values
+from .reprojection import _masked_residual, _visibility_weights
 
 __all__ = ["TauSearchResult", "tnh_with_camera_refinement", "tune_tau"]
 
@@ -142,23 +143,20 @@ def _tnh_with_camera_refinement_reference(
     thresholding by a full SVD. The camera step is today's LM (:func:`~nldr.nrsfm.cameras.refine_cameras`),
     which differs from the first one only by rounding and by stopping a frame whose cost no longer
     changes beyond rounding, so this runs faster than the first implementation did."""
-    return _alternate(
-        W2d,
-        mask,
-        R0,
-        tau,
-        max_outer=max_outer,
-        tol=tol,
-        window=window,
-        shape_max_iter=300,
-        shape_tol=1e-12,
-        shape_tol_ratio=0.0,
-        shape_tol_max=1e-12,
-        shape_momentum=False,
-        camera_max_iter=50,
-        callback=None,
-        svt=_soft_threshold_singular_values,
-    )
+    return _alternate(W2d, mask, R0, tau, max_outer=max_outer, tol=tol, window=window, **_REFERENCE_STEPS)
+
+
+# The reference's shape and camera steps (see _tnh_with_camera_refinement_reference).
+_REFERENCE_STEPS = dict(
+    shape_max_iter=300,
+    shape_tol=1e-12,
+    shape_tol_ratio=0.0,
+    shape_tol_max=1e-12,
+    shape_momentum=False,
+    camera_max_iter=50,
+    callback=None,
+    svt=_soft_threshold_singular_values,
+)
 
 
 def _alternate(
@@ -184,16 +182,11 @@ def _alternate(
     shape_tol = check_positive(shape_tol, "shape_tol")
     shape_tol_ratio = check_positive(shape_tol_ratio, "shape_tol_ratio", allow_zero=True)
     shape_tol_max = max(check_positive(shape_tol_max, "shape_tol_max"), shape_tol)
-    if (
-        isinstance(shape_max_iter, bool)
-        or not isinstance(shape_max_iter, int | np.integer)
-        or shape_max_iter < 1
-    ):
-        raise ValueError(f"shape_max_iter must be a positive integer; got {shape_max_iter!r}")
+    shape_max_iter = check_count(shape_max_iter, "shape_max_iter")
     W, vis = _check_tracks(W2d, mask)
     F, P = vis.shape
     W3 = W.reshape(F, 2, P)
-    m3 = None if vis.all() else vis[:, None, :].astype(float)
+    m3 = _visibility_weights(vis)
     # The latest shapes (F, 3, P) and their nuclear norm (warm start and penalty), the number of shape
     # steps so far and the joint energy after the previous camera step (for the shape step's tolerance).
     state = {"X": np.zeros((F, 3, P)), "nuclear": 0.0, "k": 0, "energy": None, "momentum": None}
@@ -204,16 +197,14 @@ def _alternate(
         inner_tol = shape_tol_max if shape_tol_ratio > 0 else shape_tol
         if shape_tol_ratio > 0 and state["k"] > 1:
             # the joint energy after outer iteration k - 1 (its shapes, and the cameras R it produced)
-            E = W3 - R @ X
-            if m3 is not None:
-                E *= m3
+            E = _masked_residual(W3, m3, R, X)
             energy = tau * state["nuclear"] + float(np.vdot(E, E))
             if state["energy"] is not None:
                 decrease = (state["energy"] - energy) / max(energy, 1e-300)
                 inner_tol = min(shape_tol_max, max(shape_tol, shape_tol_ratio * decrease))
             state["energy"] = energy
         momentum = state["momentum"] if shape_momentum else None
-        out = _fista(W3, m3, R, X, state["nuclear"], tau, int(shape_max_iter), inner_tol, svt, momentum)
+        out = _fista(W3, m3, R, X, state["nuclear"], tau, shape_max_iter, inner_tol, svt, momentum)
         state["X"], state["nuclear"], state["momentum"] = out.X, out.nuclear_norm, out.momentum
         return out.X.reshape(F, 3 * P)
 
