@@ -7,10 +7,10 @@ CORES ?= all
 
 .PHONY: setup reproduce quick scale test lint dryrun bench clean
 
-$(BIN)/.installed: pyproject.toml
+$(BIN)/.installed: pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m pip install --quiet -c constraints.txt -e '.[dev]'
 	touch $@
 
 setup: $(BIN)/.installed
@@ -19,7 +19,7 @@ reproduce: setup  ## every table and figure on the paper's protocol, the scoreca
 	$(BIN)/snakemake --cores $(CORES)
 	$(BIN)/snakemake --report results/report.html
 
-quick: setup  ## the same pipeline on the small protocol (config/quick.yaml)
+quick: setup  ## the same pipeline on the small protocol (config/quick.yaml), under results/quick/
 	$(BIN)/snakemake --cores $(CORES) --configfile config/quick.yaml
 
 scale: setup  ## extra targets beyond the paper: Table 2 on all 1000 oil rows, Table 3 on every frame
@@ -41,4 +41,5 @@ bench: setup  ## speed benchmarks, CSVs in results/benchmarks/ (docs/PERFORMANCE
 	$(BIN)/python benchmarks/profile_solvers.py
 
 clean:  ## remove generated results (not the data or the environment)
-	rm -rf results/tables results/figures results/runs results/notebooks results/benchmarks logs
+	rm -rf results/tables results/figures results/runs results/notebooks results/benchmarks results/logs \
+		results/quick results/report.md results/report.html results/scorecard.csv

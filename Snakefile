@@ -1,6 +1,8 @@
 # nldr: rebuild the tables and figures of Garg, Eriksson & Reid (2016).
-#   snakemake -c all            every target
-#   snakemake -c all table1     one table (its CSV/Markdown/LaTeX and its executed notebook)
+#   snakemake -c all            every table of the paper, its figures, the scorecard
+#   snakemake -c all table1     one experiment (its table, figures and executed notebook)
+#   snakemake -c all --configfile config/quick.yaml    the small protocol, under results/quick/
+# The rules are generic over the experiments of nldr.experiments (docs/ARCHITECTURE.md).
 from pathlib import Path
 
 from snakemake.utils import min_version, validate
@@ -19,22 +21,14 @@ validate(config, "workflow/schemas/config.schema.yaml")
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/data.smk"
-include: "workflow/rules/oil.smk"
-include: "workflow/rules/nrsfm.smk"
-include: "workflow/rules/tables.smk"
-include: "workflow/rules/figures.smk"
-include: "workflow/rules/notebooks.smk"
+include: "workflow/rules/experiments.smk"
 include: "workflow/rules/report.smk"
 
 
 rule all:
     default_target: True
     input:
-        rules.table1.output,
-        rules.fig3.output,
-        rules.table2.output,
-        rules.table3.output,
-        rules.fig1.output,
-        rules.table4.output,
+        [target_of(e) for e in PAPER],
+        [figure_path(f) for e in PAPER for f in e.figures],
         rules.scorecard.output,
         rules.overview.output,

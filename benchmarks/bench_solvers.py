@@ -30,7 +30,7 @@ from nldr.baselines import mean_impute
 from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import load_mocap, load_oil
 from nldr.experiments.table2 import random_mask
-from nldr.experiments.table3 import WIDTHS
+from nldr.experiments.mocap import WIDTHS
 from nldr.nrsfm import OrthographicReprojection, TraceNormHeuristic
 from nldr.nrsfm.layout import stack_to_rows
 from nldr.regularizer import minimize_regularized, optimal_kernel_factor, pre_image_step, reduced_energy

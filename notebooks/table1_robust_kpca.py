@@ -30,8 +30,11 @@
 
 # %% tags=["parameters"]
 table = "results/tables/table1.csv"
-figure = "results/figures/fig3.png"
+figures = ["results/figures/fig3.png"]
 runs = []  # per-draw CSVs; empty means every file in results/runs/table1/
+arrays = []  # per-draw arrays (none for Table 1)
+settings = {}  # the experiment's config block as the pipeline ran it; empty: the paper's protocol
+data_dir = "resources"  # folder holding oil/ and nrsfm/
 
 # %%
 from pathlib import Path
@@ -84,7 +87,7 @@ published.round(4)
 # joins the best error per rank, the bars span best to worst over all tau giving that rank.
 
 # %%
-display(Image(filename=str(root / figure)))
+display(Image(filename=str(root / figures[0])))
 
 # %% [markdown]
 # ## Which settings won, per draw

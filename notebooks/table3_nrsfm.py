@@ -17,7 +17,8 @@
 # Each frame f of a CMU mocap sequence shows 41 points through a known orthographic camera,
 # $w_f = R_f s_f$. Recovering the 3D shapes $s_f$ from 2 of their 3 coordinates needs a prior.
 # **TNH** asks the shape matrix to have a small trace norm (a *linear* low-rank prior); here it is
-# solved in its exact-fit limit with cvxpy. The **kernel regularizer** starts from TNH and asks the
+# solved in its exact-fit limit by ADMM (cvxpy's SCS agrees; docs/REPRODUCTION.md#table-3-tnh).
+# The **kernel regularizer** starts from TNH and asks the
 # shapes' RBF features to be low-rank instead (a *non-linear* prior), with τ = 1e-4 and the kernel
 # width set from the TNH shapes by the maximum-distance ($d_{max}$) or median-distance ($d_{med}$)
 # rule. Both are scored by the normalised mean 3D error e3D.
@@ -26,9 +27,11 @@
 
 # %% tags=["parameters"]
 table = "results/tables/table3.csv"
-figure = "results/figures/fig1.png"
+figures = ["results/figures/fig1.png"]
 runs = []  # per-run CSVs; empty means every file in results/runs/table3/
-mocap = []  # the .mat files; empty means resources/nrsfm/
+arrays = []  # per-run reconstructions (.npz); empty means those beside the CSVs
+settings = {}  # the experiment's config block as the pipeline ran it; empty: the paper's protocol
+data_dir = "resources"  # folder holding oil/ and nrsfm/
 
 # %%
 from pathlib import Path
@@ -40,6 +43,7 @@ from IPython.display import HTML, Image, Markdown, display
 from matplotlib import animation
 
 from nldr import tables
+from nldr.experiments.mocap import Reconstructions
 from nldr.nrsfm import center_per_frame
 
 root = Path.cwd() if (Path.cwd() / "Snakefile").exists() else Path.cwd().parent
@@ -72,22 +76,22 @@ all_runs.groupby(["sequence", "method"])["seconds"].median().unstack().round(1)
 # mark points whose projection was observed in that frame, squares those that were missing.
 
 # %%
-display(Image(filename=str(root / figure)))
+display(Image(filename=str(root / figures[0])))
 
 # %% [markdown]
 # ## A reconstructed sequence, turning
 # The first missing-data run of the first sequence, one frame, seen from all around.
 
 # %%
-shape_files = [p.with_suffix(".npz") for p in run_paths]
+shape_files = [Path(a) for a in arrays] or [p.with_suffix(".npz") for p in run_paths]
 npz = [p for p in shape_files if "_missing_" in p.name] or shape_files
-data = np.load(npz[0])
-methods = list(data["methods"])
-P = data["mask"].shape[1]
-f = data["ground_truth"].shape[0] // 2
-gt = center_per_frame(data["ground_truth"], P)[f].reshape(3, P)
-ours = center_per_frame(data[f"shape_{len(methods) - 1}"], P)[f].reshape(3, P)
-tnh = center_per_frame(data[f"shape_{methods.index('TNH')}"], P)[f].reshape(3, P)
+rec = Reconstructions.from_arrays(np.load(npz[0]))
+methods = list(rec.shapes)
+P = rec.mask.shape[1]
+f = rec.ground_truth.shape[0] // 2
+gt = center_per_frame(rec.ground_truth, P)[f].reshape(3, P)
+ours = center_per_frame(rec.shapes[methods[-1]], P)[f].reshape(3, P)
+tnh = center_per_frame(rec.shapes["TNH"], P)[f].reshape(3, P)
 fig = plt.figure(figsize=(4, 4))
 ax = fig.add_subplot(projection="3d")
 ax.scatter(*gt, color="red", s=12, label="ground truth")

@@ -26,6 +26,10 @@
 # %% tags=["parameters"]
 table = "results/tables/table4.csv"
 runs = []  # per-run CSVs; empty means every file in results/runs/table4/
+figures = []
+arrays = []  # per-run reconstructions and cameras (.npz)
+settings = {}  # the experiment's config block as the pipeline ran it; empty: the paper's protocol
+data_dir = "resources"  # folder holding oil/ and nrsfm/
 
 # %%
 from pathlib import Path

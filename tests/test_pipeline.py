@@ -1,25 +1,19 @@
 """The pipeline end to end on the quick protocol, in a scratch working directory."""
 
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from conftest import REPO
+from protocol import QUICK, REPO, full_config, quick_config, quick_results, run_snakemake
 
+from nldr.experiments import EXPERIMENTS
 from nldr.tables import TABLE_COLUMNS
 
-SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 # every target of the quick protocol (the default target `all` is the same set)
 TARGETS = ["table1", "fig3", "table2", "table3", "fig1", "table4", "scorecard", "overview"]
-
-
-def run_snakemake(workdir, *args):
-    cmd = [*SNAKEMAKE, "-s", str(REPO / "Snakefile"), "-d", str(workdir), *args]
-    return subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)
+R = quick_results()  # e.g. results/quick
 
 
 @pytest.fixture(scope="module")
@@ -31,7 +25,7 @@ def quick_run(tmp_path_factory):
         "-c",
         "2",
         "--configfile",
-        str(REPO / "config/quick.yaml"),
+        str(QUICK),
     )
     assert proc.returncode == 0, proc.stderr[-4000:]
     return workdir
@@ -39,20 +33,23 @@ def quick_run(tmp_path_factory):
 
 @pytest.mark.pipeline
 def test_table1_target_builds_table_figure_and_notebook(quick_run):
-    table = pd.read_csv(quick_run / "results/tables/table1.csv")
+    table = pd.read_csv(quick_run / R / "tables/table1.csv")
     assert list(table.columns) == TABLE_COLUMNS
     assert set(table["setting"]) == {"std=0.2", "std=0.3", "std=0.4"}
     published = table.dropna(subset=["paper"])
     assert len(published) == 12  # every number of the paper's Table 1 has ours beside it
     assert published["value"].notna().all()
     for ext in ("md", "tex"):
-        assert (quick_run / f"results/tables/table1.{ext}").stat().st_size > 0
-    assert (quick_run / "results/figures/fig3.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    notebook = quick_run / "results/notebooks/table1_robust_kpca.ipynb"
+        assert (quick_run / R / f"tables/table1.{ext}").stat().st_size > 0
+    assert (quick_run / R / "figures/fig3.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    notebook = quick_run / R / "notebooks/table1_robust_kpca.ipynb"
     assert notebook.is_file() and "Table 1" in notebook.read_text()
     assert not list((quick_run / "results").rglob(".*.tmp")) and not list(
         (quick_run / "results").rglob(".*.ipynb")
     )
+    # the quick protocol wrote nothing outside its own folder
+    outside = [p for p in (quick_run / "results").rglob("*") if p.is_file() and R not in str(p)]
+    assert not outside, outside[:5]
 
 
 @pytest.mark.pipeline
@@ -62,7 +59,7 @@ def test_second_run_has_nothing_to_do(quick_run):
         *TARGETS,
         "-n",
         "--configfile",
-        str(REPO / "config/quick.yaml"),
+        str(QUICK),
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "Nothing to be done" in proc.stdout + proc.stderr
@@ -85,21 +82,21 @@ def test_config_errors_are_caught_before_any_job(tmp_path):
 
 @pytest.mark.pipeline
 def test_table2_target_has_every_method_beside_the_paper(quick_run):
-    table = pd.read_csv(quick_run / "results/tables/table2.csv")
+    table = pd.read_csv(quick_run / R / "tables/table2.csv")
     assert list(table.columns) == TABLE_COLUMNS
     sse = table[table["metric"] == "sse"]
     assert set(sse["method"]) == {"mean", "1-NN", "PPCA", "PKPCA", "RKPCA", "Ours"}
     assert sse["paper"].notna().sum() >= 5 * len(set(sse["setting"]))
-    assert (quick_run / "results/notebooks/table2_completion.ipynb").is_file()
-    runs = pd.concat(pd.read_csv(p) for p in (quick_run / "results/runs/table2").glob("*.csv"))
+    assert (quick_run / R / "notebooks/table2_completion.ipynb").is_file()
+    runs = pd.concat(pd.read_csv(p) for p in (quick_run / R / "runs/table2").glob("*.csv"))
     # every method saw the same mask within a run file
     assert runs.groupby(["p", "seed"])["n_missing"].nunique().eq(1).all()
 
 
 @pytest.mark.pipeline
 def test_table3_target_has_tnh_and_both_widths_beside_the_paper(quick_run):
-    quick = yaml.safe_load((REPO / "config/quick.yaml").read_text())["table3"]
-    table = pd.read_csv(quick_run / "results/tables/table3.csv")
+    quick = quick_config()["table3"]
+    table = pd.read_csv(quick_run / R / "tables/table3.csv")
     assert list(table.columns) == TABLE_COLUMNS
     e3d = table[table["metric"] == "e3d"]
     assert set(e3d["method"]) == {"TNH", "Kernel d_max", "Kernel d_med"}
@@ -114,27 +111,27 @@ def test_table3_target_has_tnh_and_both_widths_beside_the_paper(quick_run):
             per_seq = rows[~rows["setting"].str.startswith("Mean")]["value"]
             mean = rows[rows["setting"] == f"Mean {kind}"]["value"].item()
             assert mean == pytest.approx(per_seq.mean(), rel=1e-8)  # CSV keeps 10 digits
-    assert (quick_run / "results/figures/fig1.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert (quick_run / "results/notebooks/table3_nrsfm.ipynb").is_file()
+    assert (quick_run / R / "figures/fig1.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (quick_run / R / "notebooks/table3_nrsfm.ipynb").is_file()
 
 
 @pytest.mark.pipeline
 def test_a_second_clean_run_on_one_core_gives_byte_identical_tables(quick_run, tmp_path):
     """Every random draw is seeded and BLAS is pinned per job, so the tables may not depend on the run
     or on how many jobs ran side by side (the first run used 2 cores, this one uses 1)."""
-    targets = ["table1_table", "table2_table", "table3_table", "table4_table"]
-    proc = run_snakemake(tmp_path, *targets, "-c", "1", "--configfile", str(REPO / "config/quick.yaml"))
+    targets = [f"{R}/tables/{name}.csv" for name in ("table1", "table2", "table3", "table4")]
+    proc = run_snakemake(tmp_path, *targets, "-c", "1", "--configfile", str(QUICK))
     assert proc.returncode == 0, proc.stderr[-4000:]
-    tables = sorted((quick_run / "results/tables").glob("table*.*"))
+    tables = sorted((quick_run / R / "tables").glob("table*.*"))
     assert len(tables) == 12  # four tables, each as csv, md and tex
     for first in tables:
-        second = tmp_path / "results/tables" / first.name
+        second = tmp_path / R / "tables" / first.name
         if second.read_bytes() != first.read_bytes():
             # name the BLAS kernels and CPU features each run's jobs used (see _pipeline.compute_fingerprint)
             seen = {
                 f"{root.name}/{log.relative_to(root)}": line.split("compute:", 1)[1].strip()
                 for root in (quick_run, tmp_path)
-                for log in sorted(root.glob("logs/*/*.log"))
+                for log in sorted((root / R / "logs").rglob("*.log"))
                 for line in log.read_text().splitlines()
                 if "compute:" in line
             }
@@ -145,28 +142,33 @@ def test_a_second_clean_run_on_one_core_gives_byte_identical_tables(quick_run, t
 
 @pytest.mark.pipeline
 def test_changing_a_table2_parameter_reruns_table2_only(quick_run, tmp_path):
-    config = yaml.safe_load((REPO / "config/quick.yaml").read_text())
-    config["table2"]["methods"]["Ours"]["tau"] = 0.2
+    config = yaml.safe_load(QUICK.read_text())
+    config.setdefault("table2", {})["methods"] = {"Ours": {"tau": 0.2}}
     changed = tmp_path / "changed.yaml"
-    changed.write_text(yaml.safe_dump(config, sort_keys=False))  # key order is part of params
+    changed.write_text(yaml.safe_dump(config, sort_keys=False))
     targets = ["table1", "fig3", "table2", "table3", "fig1"]
     proc = run_snakemake(quick_run, *targets, "-n", "--configfile", str(changed))
     assert proc.returncode == 0, proc.stderr[-2000:]
-    jobs = {line.split()[0] for line in proc.stdout.splitlines() if line.strip() and "_" in line.split()[0]}
-    planned = {j for j in jobs if j.startswith(("table", "fig"))}
-    assert {"table2_run", "table2_table"} <= planned
-    others = {j for j in planned if j.startswith(("table1", "table3", "table4", "fig"))}
+    outputs = [
+        line.split(":", 1)[1].strip()
+        for line in proc.stdout.splitlines()
+        if line.strip().startswith("output:")
+    ]
+    planned = {Path(path).parent.name + "/" + Path(path).name for o in outputs for path in o.split(", ")}
+    assert any(p.startswith("table2/") for p in planned)  # the runs of Table 2
+    assert "tables/table2.csv" in planned and "notebooks/table2_completion.ipynb" in planned
+    others = {p for p in planned if any(k in p for k in ("table1", "table3", "table4", "fig"))}
     assert not others, proc.stdout[-3000:]
 
 
 @pytest.mark.pipeline
 def test_scorecard_counts_match_the_tables(quick_run):
     """The report's headline counts, recomputed from the table CSVs with the bands' definitions."""
-    bands = yaml.safe_load((REPO / "config/quick.yaml").read_text())["scorecard"]
-    scored = pd.read_csv(quick_run / "results/scorecard.csv")
+    bands = quick_config()["scorecard"]
+    scored = pd.read_csv(quick_run / R / "scorecard.csv")
     published = 0
-    for name in ("table1", "table2", "table3", "table4"):
-        table = pd.read_csv(quick_run / f"results/tables/{name}.csv")
+    for name in [e.name for e in EXPERIMENTS.values() if e.in_paper]:
+        table = pd.read_csv(quick_run / R / f"tables/{name}.csv")
         headline = table[table["paper"].notna() & ~table["metric"].str.endswith(("_sd", "_min", "_max"))]
         published += len(headline)
         # spot-check the rel band of Table 1 against the CSV directly
@@ -179,20 +181,18 @@ def test_scorecard_counts_match_the_tables(quick_run):
     banded = scored[scored["inside"].notna()]
     inside = int(banded["inside"].astype(bool).sum())
     assert len(banded) >= sum(1 for b in bands if b["kind"] != "none")  # every banded rule scores a cell
-    report = (quick_run / "results/report.md").read_text()
+    report = (quick_run / R / "report.md").read_text()
     assert f"**{inside} of {len(banded)} banded cells inside their band**; {published} numbers" in report
     assert "![fig3](figures/fig3.png)" in report and "git commit:" in report
-    overview = (quick_run / "results/notebooks/00_overview.ipynb").read_text()
+    overview = (quick_run / R / "notebooks/00_overview.ipynb").read_text()
     assert f"{inside} of {len(banded)} banded cells inside their band" in overview
 
 
 @pytest.mark.pipeline
 def test_html_report_has_every_table_and_figure(quick_run):
-    proc = run_snakemake(
-        quick_run, "--report", "results/report.html", "--configfile", str(REPO / "config/quick.yaml")
-    )
+    proc = run_snakemake(quick_run, "--report", f"{R}/report.html", "--configfile", str(QUICK))
     assert proc.returncode == 0, proc.stderr[-3000:]
-    html = (quick_run / "results/report.html").read_text(errors="replace")
+    html = (quick_run / R / "report.html").read_text(errors="replace")
     for name in ("table1.md", "table2.md", "table3.md", "table4.md", "fig1.png", "fig3.png", "report.md"):
         assert name in html, name
 
@@ -203,13 +203,16 @@ def test_every_job_is_planned_with_each_profile(tmp_path, profile):
     """A dry run of the full protocol from nothing lists every job of every table with either profile."""
     proc = run_snakemake(tmp_path, "-n", "--profile", str(REPO / "profiles" / profile))
     assert proc.returncode == 0, proc.stderr[-3000:]
-    config = yaml.safe_load((REPO / "config/config.yaml").read_text())
-    t1, t2, t3 = config["table1"], config["table2"], config["table3"]
+    config = full_config()
+    t1, t2, t3, t4 = config["table1"], config["table2"], config["table3"], config["table4"]
     expected = {
-        "table1_run": len(t1["noise_std"]) * t1["n_draws"],
-        "table2_run": len(t2["p"]) * t2["n_masks"],
-        "table3_run": len(t3["sequences"]) * (1 + t3["n_seeds"]),
-        "table4_run": len(config["table4"]["sequences"]) * (1 + config["table4"]["n_seeds"]),
+        "run_job": len(t1["noise_std"]) * t1["n_draws"]
+        + len(t2["p"]) * t2["n_masks"]
+        + len(t3["sequences"]) * (1 + t3["n_seeds"])
+        + len(t4["sequences"]) * (1 + t4["n_seeds"]),
+        "gather_table": 4,
+        "draw_figure": 2,
+        "notebook": 4,
         "scorecard": 1,
         "all": 1,
     }
@@ -224,16 +227,16 @@ def test_every_job_is_planned_with_each_profile(tmp_path, profile):
 
 @pytest.mark.pipeline
 def test_table4_target_has_tuned_tnh_and_both_widths_with_camera_errors(quick_run):
-    quick = yaml.safe_load((REPO / "config/quick.yaml").read_text())["table4"]
-    table = pd.read_csv(quick_run / "results/tables/table4.csv")
+    quick = quick_config()["table4"]
+    table = pd.read_csv(quick_run / R / "tables/table4.csv")
     assert list(table.columns) == TABLE_COLUMNS
     e3d = table[table["metric"] == "e3d"]
     assert set(e3d["method"]) == {"TNH", "Kernel d_max", "Kernel d_med"}
     assert e3d["paper"].notna().all() and (e3d["value"] > 0).all()
-    runs = pd.concat(pd.read_csv(p) for p in (quick_run / "results/runs/table4").glob("*.csv"))
+    runs = pd.concat(pd.read_csv(p) for p in (quick_run / R / "runs/table4").glob("*.csv"))
     assert len(runs) == 3 * len(quick["sequences"]) * (1 + quick["n_seeds"])
     lo, hi = quick["tnh"]["log10_tau_bounds"]
     tnh = runs[runs["method"] == "TNH"]
     assert ((np.log10(tnh["tau"]) >= lo - 1e-9) & (np.log10(tnh["tau"]) <= hi + 1e-9)).all()
     assert runs["camera_error"].notna().all() and runs["camera_error_init"].notna().all()
-    assert (quick_run / "results/notebooks/table4_nrsfm_cameras.ipynb").is_file()
+    assert (quick_run / R / "notebooks/table4_nrsfm_cameras.ipynb").is_file()

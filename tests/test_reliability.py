@@ -4,15 +4,14 @@ numerical edge cases never let NaN or infinity out of a solver."""
 import os
 import signal
 import subprocess
-import sys
 import time
 
 import numpy as np
 import pytest
 import yaml
-from conftest import REPO
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from protocol import REPO, SNAKEMAKE, quick_config, quick_results
 
 from nldr.data_terms import MaskedLeastSquares
 from nldr.kernels import rbf_kernel
@@ -20,12 +19,8 @@ from nldr.nrsfm import OrthographicReprojection, TraceNormHeuristic
 from nldr.regularizer import minimize_regularized
 from nldr.robust_kpca import closed_form_rank_penalty
 
-SNAKEMAKE = [sys.executable, "-m", "snakemake", "-s", str(REPO / "Snakefile")]
 QUICK = str(REPO / "config/quick.yaml")
-
-
-def quick_config():
-    return yaml.safe_load((REPO / "config/quick.yaml").read_text())
+R = quick_results()
 
 
 # --------------------------------------------------------------------------------------------------
@@ -77,13 +72,13 @@ def test_bad_config_is_rejected_naming_the_key_before_any_job(tmp_path, path, va
 
 @pytest.mark.pipeline
 def test_run_killed_in_a_heavy_job_finishes_with_the_same_table(tmp_path):
-    targets = ["table3_table", "-c", "1", "--configfile", QUICK]
+    targets = [f"{R}/tables/table3.csv", "-c", "1", "--configfile", QUICK]
     interrupted, clean = tmp_path / "interrupted", tmp_path / "clean"
     cmd = [*SNAKEMAKE, "-d", str(interrupted), *targets]
     proc = subprocess.Popen(
         cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
     )
-    logs = interrupted / "logs/table3_run"
+    logs = interrupted / R / "logs/run/table3"
     deadline = time.monotonic() + 120
     try:
         # wait until the first NRSfM job has started and is inside its solver
@@ -92,14 +87,14 @@ def test_run_killed_in_a_heavy_job_finishes_with_the_same_table(tmp_path):
         ):
             assert proc.poll() is None, "the run ended before it could be interrupted"
             time.sleep(0.2)
-        assert time.monotonic() < deadline, "no table3_run job started within 2 minutes"
+        assert time.monotonic() < deadline, "no table3 job started within 2 minutes"
     finally:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
-    runs = interrupted / "results/runs/table3"
+    runs = interrupted / R / "runs/table3"
     done = {p.name for p in runs.glob("*.csv")}
     assert len(done) < 2 * len(quick_config()["table3"]["sequences"])  # it really was cut short
-    assert not (interrupted / "results/tables/table3.csv").exists()
+    assert not (interrupted / R / "tables/table3.csv").exists()
 
     # SIGKILL leaves Snakemake's lock behind: the next run says so and names the fix
     locked = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
@@ -113,8 +108,8 @@ def test_run_killed_in_a_heavy_job_finishes_with_the_same_table(tmp_path):
     )
     assert reference.returncode == 0, reference.stderr[-3000:]
     for name in ("table3.csv", "table3.md", "table3.tex"):
-        first = (interrupted / "results/tables" / name).read_bytes()
-        assert first == (clean / "results/tables" / name).read_bytes(), name
+        first = (interrupted / R / "tables" / name).read_bytes()
+        assert first == (clean / R / "tables" / name).read_bytes(), name
 
 
 # --------------------------------------------------------------------------------------------------
@@ -228,7 +223,7 @@ def test_corrupt_mirror_stops_the_pipeline_before_results(tmp_path, data_dir):
     work = tmp_path / "work"
     env = {**os.environ, "NLDR_DATA_MIRROR": str(mirror)}
     proc = subprocess.run(
-        [*SNAKEMAKE, "-d", str(work), "-c", "1", "table2_table", "--configfile", QUICK],
+        [*SNAKEMAKE, "-d", str(work), "-c", "1", f"{R}/tables/table2.csv", "--configfile", QUICK],
         cwd=REPO,
         capture_output=True,
         text=True,
@@ -237,5 +232,6 @@ def test_corrupt_mirror_stops_the_pipeline_before_results(tmp_path, data_dir):
     out = proc.stdout + proc.stderr
     assert proc.returncode != 0
     assert "oil/DataTrn.txt" in out and FILES["oil/DataTrn.txt"].sha256 in out and "NLDR_DATA_MIRROR" in out
-    assert not (work / "results").exists()
+    written = [p for p in (work / "results").rglob("*") if p.is_file() and "logs" not in p.parts]
+    assert not written, written  # only the failed fetch's log
     assert not (work / "resources/oil/DataTrn.txt").exists()

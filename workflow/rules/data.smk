@@ -12,7 +12,7 @@ rule fetch_data:
     conda:
         "../envs/nldr.yaml"
     log:
-        "logs/fetch_data/{relpath}.log",
+        f"{RESULTS}/logs/fetch_data/{{relpath}}.log",
     localrule: True
     retries: 1
     script:

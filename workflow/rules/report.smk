@@ -1,24 +1,24 @@
-# The reproduction scorecard: every published number, ours beside it, its band, and provenance.
+# The reproduction scorecard: every published number, ours beside it, its band, and provenance; then
+# the overview notebook that presents it.
 
 
 rule scorecard:
     input:
-        tables=expand("results/tables/{name}.csv", name=["table1", "table2", "table3", "table4"]),
-        figures=["results/figures/fig3.png", "results/figures/fig1.png"],
-        data=oil_files("train")
-        + oil_files("test")
-        + expand(f"{DATA_DIR}/nrsfm/{{seq}}.mat", seq=sorted(set(T3["sequences"]) | set(T4["sequences"]))),
+        tables=[table_files(e)[0] for e in PAPER],
+        figures=[figure_path(f) for e in PAPER for f in e.figures],
+        data=data_paths(sorted({rel for e in PAPER for rel in e.data_files(config)})),
     output:
-        md=report("results/report.md", caption="../report/scorecard.rst", category="Scorecard"),
-        csv="results/scorecard.csv",
+        md=report(f"{RESULTS}/report.md", caption="../report/scorecard.rst", category="Scorecard"),
+        csv=f"{RESULTS}/scorecard.csv",
     params:
         bands=config["scorecard"],
         config=config,
         repo=str(REPO),
+        benchmarks=f"{RESULTS}/benchmarks",
     conda:
         "../envs/nldr.yaml"
     log:
-        "logs/report.log",
+        f"{RESULTS}/logs/scorecard.log",
     localrule: True
     script:
         "../scripts/report.py"
@@ -27,14 +27,14 @@ rule scorecard:
 rule overview:
     input:
         notebook=str(REPO / "notebooks" / "00_overview.py"),
-        scorecard="results/scorecard.csv",
-        report="results/report.md",
+        scorecard=rules.scorecard.output.csv,
+        report=rules.scorecard.output.md,
     output:
-        "results/notebooks/00_overview.ipynb",
+        f"{RESULTS}/notebooks/00_overview.ipynb",
     conda:
         "../envs/nldr.yaml"
     log:
-        "logs/notebooks/overview.log",
+        f"{RESULTS}/logs/notebook/00_overview.log",
     localrule: True
     script:
         "../scripts/run_notebook.py"

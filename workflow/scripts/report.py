@@ -38,18 +38,18 @@ def git_commit(repo):
 
 def wall_times():
     rows = []
-    for tsv in sorted(Path("results/benchmarks").glob("*/*.tsv")):
+    for tsv in sorted(Path(sm.params.benchmarks).glob("*/*.tsv")):
         frame = pd.read_csv(tsv, sep="\t")
-        rows.append({"rule": tsv.parent.name, "jobs": 1, "seconds": float(frame["s"].iloc[-1])})
+        rows.append({"experiment": tsv.parent.name, "jobs": 1, "seconds": float(frame["s"].iloc[-1])})
     if not rows:
         return "no benchmark files found\n"
     agg = (
         pd.DataFrame(rows)
-        .groupby("rule")
+        .groupby("experiment")
         .agg(jobs=("jobs", "sum"), seconds=("seconds", "sum"), longest=("seconds", "max"))
     )
-    lines = ["| rule | jobs | total seconds | longest job (s) |", "|---|---|---|---|"]
-    lines += [f"| {rule} | {int(r.jobs)} | {r.seconds:.1f} | {r.longest:.1f} |" for rule, r in agg.iterrows()]
+    lines = ["| experiment | jobs | total seconds | longest job (s) |", "|---|---|---|---|"]
+    lines += [f"| {name} | {int(r.jobs)} | {r.seconds:.1f} | {r.longest:.1f} |" for name, r in agg.iterrows()]
     return "\n".join(lines) + "\n"
 
 
@@ -85,7 +85,7 @@ docs/REPRODUCTION.md that explains its protocol and any gap. As data: `results/s
 |---|---|
 {data}
 
-Wall time per rule (from Snakemake's `benchmark:` files):
+Wall time per experiment's jobs (from Snakemake's `benchmark:` files):
 
 {wall_times()}"""
 write_text(sm.output.md, text)

@@ -1,7 +1,8 @@
 """Execute a jupytext percent notebook with papermill into results/notebooks/ (atomic write).
 
-The notebook's ``parameters`` cell is overridden with the rule's named inputs (absolute paths), so
-the executed copy shows exactly the files this run produced.
+The notebook's ``parameters`` cell is overridden with the rule's named inputs (absolute paths) and
+with the rule's ``parameters`` param (the experiment's settings, the data folder), so the executed copy
+shows exactly the files and settings of this run.
 """
 
 import os
@@ -16,8 +17,9 @@ log = setup(sm)
 parameters = {
     key: (str(Path(value).resolve()) if isinstance(value, str) else [str(Path(v).resolve()) for v in value])
     for key, value in sm.input.items()
-    if key != "notebook"
+    if key not in ("notebook", "data")
 }
+parameters.update(dict(getattr(sm.params, "parameters", None) or {}))
 notebook = jupytext.read(sm.input.notebook)
 # A non-interactive MPLBACKEND (CI sets Agg) would stop the kernel from showing figures inline.
 os.environ.pop("MPLBACKEND", None)

@@ -28,19 +28,25 @@ import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
+from .. import paper as paper_numbers
 from .._validation import check_count, check_positive
-from ..kernels import d_max_width, d_med_width
+from ..datasets import load_mocap
 from ..nrsfm import OrthographicReprojection, TraceNormHeuristic, e3d, random_visibility_mask, stack_to_rows
+from ..paper import paper_frame
+from ..plotting import figure1
 from ..regularizer import minimize_regularized
+from ..tables import attach_paper
+from .base import JobOutput
+from .mocap import (
+    WIDTHS,
+    MocapExperiment,
+    Reconstructions,
+    check_sequence,
+    every_nth_frame,
+    setting_label,
+)
 
-__all__ = ["METHODS", "WIDTHS", "SEQUENCES", "Table3Run", "setting_label", "run_sequence", "summarise"]
-
-#: Kernel-width criteria: name -> gamma of the RBF kernel from the TNH shapes (samples as rows).
-WIDTHS: dict[str, Callable[[np.ndarray], float]] = {"d_max": d_max_width, "d_med": d_med_width}
-#: Method labels in the paper's column order.
-METHODS = ("TNH", "Kernel d_max", "Kernel d_med")
-#: The paper's sequences, in its row order.
-SEQUENCES = ("drink", "pickup", "yoga", "stretch")
+__all__ = ["Table3Run", "run_sequence", "Table3", "Table3Full"]
 
 _ROW_COLUMNS = [
     "sequence",
@@ -89,11 +95,6 @@ class Table3Run:
     results: dict = field(default_factory=dict)
 
 
-def setting_label(missing_fraction: float) -> str:
-    """``"full"`` for 0, else ``"missing<percent>"`` (``0.5 -> "missing50"``), as in :mod:`nldr.paper`."""
-    return "full" if missing_fraction == 0 else f"missing{round(100 * float(missing_fraction)):d}"
-
-
 def _tnh_call_options(tnh_options: Mapping | None) -> tuple[str, dict]:
     """Split the pipeline's ``tnh`` mapping into (solver, solver_options).
 
@@ -122,14 +123,6 @@ def _kernel_solve(job, worker: bool = False):
 
 def _kernel_solve_in_worker(job):
     return _kernel_solve(job, worker=True)
-
-
-def _check_sequence(seq):
-    for attr in ("name", "W", "S", "R"):
-        if not hasattr(seq, attr):
-            raise ValueError(f"seq must be a MocapSequence (nldr.datasets.load_mocap); it has no {attr!r}")
-    if seq.R is None:
-        raise ValueError(f"sequence {seq.name!r} has no ground-truth cameras (R is None); Table 3 needs them")
 
 
 def run_sequence(
@@ -195,7 +188,7 @@ def run_sequence(
     nldr.nrsfm.TNHSolveError
         If the conic solver fails on TNH.
     """
-    _check_sequence(seq)
+    check_sequence(seq, "Table 3")
     frac = check_positive(missing_fraction, "missing_fraction", allow_zero=True)
     if frac >= 1.0:
         raise ValueError(f"missing_fraction must be in [0, 1); got {missing_fraction!r}")
@@ -283,83 +276,109 @@ def run_sequence(
     )
 
 
-def _sequence_order(names) -> list[str]:
-    known = [s for s in SEQUENCES if s in set(names)]
-    return known + sorted(set(names) - set(SEQUENCES))
 
 
-def _stats(per_seed: pd.Series) -> dict[str, float]:
-    """Mean, sample sd (NaN for one seed), min, max and count of per-seed errors."""
-    n = len(per_seed)
-    return {
-        "e3d": float(per_seed.mean()) if n else np.nan,
-        "e3d_sd": float(per_seed.std(ddof=1)) if n > 1 else np.nan,
-        "e3d_min": float(per_seed.min()) if n else np.nan,
-        "e3d_max": float(per_seed.max()) if n else np.nan,
-        "n_seeds": float(n),
+class Table3(MocapExperiment):
+    """Table 3 and Figure 1: NRSfM with ground-truth cameras (paper Section 4.3)."""
+
+    name = "table3"
+    title = "NRSfM with ground-truth cameras: TNH against the kernel regularizer"
+    in_paper = True
+    paper = paper_numbers.TABLE3
+    notebook = "table3_nrsfm"
+    figures = ("fig1",)
+    figure_captions = {
+        "fig1": (
+            "Figure 1: sample frames with 50 % of the 2D points missing. Red wire-frame: ground truth; blue "
+            "dots: the kernel regularizer (d_med); black crosses: TNH. Circles mark points observed in that "
+            "frame, squares the missing ones."
+        )
     }
 
+    def resources(self, config, job):
+        return {"mem_mb": 2000, "runtime": 30}
 
-def summarise(runs: pd.DataFrame) -> pd.DataFrame:
-    """Aggregate :func:`run_sequence` rows into Table 3's tidy rows (setting, method, metric, value).
+    def run(self, job, settings, data_dir, *, progress=None, threads=1):
+        seq = self.load(job, settings, data_dir)
+        if progress is not None:
+            progress(f"{seq.name}: {seq.n_frames} frames, {seq.n_points} points, job {job.id}")
+        run = run_sequence(
+            seq,
+            missing_fraction=job.params["missing_fraction"],
+            seed=job.params["seed"],
+            tau=settings["tau"],
+            widths=tuple(settings["widths"]),
+            tnh_options=dict(settings["tnh"]),
+            progress=progress,
+            n_jobs=threads,  # width criteria in parallel when the job has 2 threads (drink, every frame)
+            **dict(settings["regularizer"]),
+        )
+        recon = Reconstructions(shapes=run.shapes, mask=run.mask, ground_truth=run.ground_truth)
+        return JobOutput(rows=run.rows, arrays=recon.to_arrays())
 
-    Settings are ``"<Sequence> <full|missing50>"`` as in :data:`nldr.paper.TABLE3`, plus
-    ``"Mean <full|missing50>"``. Per sequence, setting and method: ``e3d`` is the mean over seeds,
-    ``e3d_sd`` the sample standard deviation over seeds (NaN with one seed), ``e3d_min``,
-    ``e3d_max`` and ``n_seeds``. The Mean rows follow the paper (the mean over sequences): ``e3d``
-    is the mean over the sequences of their per-sequence means; the spread metrics treat the
-    across-sequence mean of one seed as one replicate, over the seeds every sequence ran
-    (``n_seeds`` counts them); ``n_sequences`` says how many sequences entered the mean.
-    Timings stay in the run frames: a table must not change between reruns.
-    """
-    missing = set(_ROW_COLUMNS[:5]) - set(runs.columns)
-    if missing:
-        raise ValueError(f"runs lacks columns {sorted(missing)}; pass the rows of run_sequence")
-    methods = [m for m in METHODS if m in set(runs["method"])]
-    methods += sorted(set(runs["method"]) - set(METHODS))
-    sequences = _sequence_order(runs["sequence"].unique())
-    fractions = sorted(runs["missing_fraction"].unique())
-    rows = []
-    for frac in fractions:
-        label = setting_label(frac)
-        for seq in sequences:
-            for method in methods:
-                group = runs[
-                    (runs["missing_fraction"] == frac)
-                    & (runs["sequence"] == seq)
-                    & (runs["method"] == method)
-                ]
-                if group.empty:
-                    continue
-                per_seed = group.groupby("seed")["e3d"].mean()
-                for metric, value in _stats(per_seed).items():
-                    rows.append((f"{seq.capitalize()} {label}", method, metric, value))
-        for method in methods:
-            group = runs[(runs["missing_fraction"] == frac) & (runs["method"] == method)]
-            if group.empty:
-                continue
-            # (seed x sequence) table of errors; the Mean's value averages each sequence over its seeds
-            grid = group.pivot_table(index="seed", columns="sequence", values="e3d", aggfunc="mean")
-            stats = _stats(grid.dropna(axis=0, how="any").mean(axis=1))
-            stats["e3d"] = float(grid.mean(axis=0).mean())
-            stats["n_sequences"] = float(grid.shape[1])
-            for metric, value in stats.items():
-                rows.append((f"Mean {label}", method, metric, value))
-    out = pd.DataFrame(rows, columns=["setting", "method", "metric", "value"])
-    return _paper_order(out)
+    def caption(self, config):
+        s = self.settings(config)
+        return (
+            f"Table 3: NRSfM with ground-truth cameras on CMU mocap ({every_nth_frame(s['step'])}), "
+            f"normalised mean 3D error e3D of the trace-norm heuristic (TNH, linear) and of the kernel "
+            f"regularizer (tau = {s['tau']:g}) with the d_max and d_med kernel widths, with full data and "
+            f"with {s['missing_fraction']:.0%} of the 2D points missing (mean ± sd over {s['n_seeds']} "
+            "seeded masks). Paper in parentheses."
+        )
+
+    def draw(self, figure, runs, arrays, data_dir):
+        if figure != "fig1":
+            return super().draw(figure, runs, arrays, data_dir)
+        # one reconstruction per sequence: its first missing-data job, else its full-data job
+        chosen = {}
+        for job_id in sorted(arrays):
+            seq, setting = job_id.split("_")[:2]
+            if seq not in chosen or (setting == "missing" and "_missing_" not in chosen[seq]):
+                chosen[seq] = job_id
+        recons = {seq: Reconstructions.from_arrays(arrays[job_id]) for seq, job_id in chosen.items()}
+        bones = {seq: load_mocap(seq, data_dir).bones for seq in recons}
+        return figure1(recons, bones)
 
 
-def _paper_order(table: pd.DataFrame) -> pd.DataFrame:
-    """Rows by sequence (paper order, Mean last), full before missing, then method and metric order."""
-    settings = list(dict.fromkeys(table["setting"]))
-    names = list(dict.fromkeys(s.split(" ", 1)[0] for s in settings))
-    names = [n for n in names if n != "Mean"] + (["Mean"] if "Mean" in names else [])
-    kinds = sorted({s.split(" ", 1)[1] for s in settings}, key=lambda k: (k != "full", k))
-    order = [f"{n} {k}" for n in names for k in kinds if f"{n} {k}" in settings]
-    key = {s: i for i, s in enumerate(order)}
-    return (
-        table.assign(_k=table["setting"].map(key), _i=np.arange(len(table)))
-        .sort_values(["_k", "_i"], kind="stable")
-        .drop(columns=["_k", "_i"])
-        .reset_index(drop=True)
-    )
+class Table3Full(Table3):
+    """Table 3 on every frame (not in the paper; speed and scale), beside Table 3's every 10th frame."""
+
+    name = "table3_full"
+    title = "Table 3 on every frame (not in the paper)"
+    in_paper = False
+    notebook = None
+    figures = ()
+    figure_captions = {}
+    inherits = "table3"
+    gathers_with = ("table3",)
+
+    def threads(self, config, job):
+        return 2 if job.params["sequence"] == "drink" else 1  # 1102 x 1102 kernels: BLAS on 2 cores
+
+    def resources(self, config, job):
+        return {"mem_mb": 4000, "runtime": 60}
+
+    def table(self, runs, config, others):
+        """Each method twice: "<method>, every frame" (this experiment's runs) and "<method>, every
+        10th frame" (Table 3's), the paper's numbers beside the latter (the paper ran only those)."""
+        published = paper_frame(self.paper)
+        full, sub = self.summarise(runs), self.summarise(others["table3"])
+        full_label = every_nth_frame(self.settings(config)["step"])
+        sub_label = every_nth_frame(config["table3"]["step"])
+        paired = []
+        for method in dict.fromkeys(sub["method"]):
+            paired.append(attach_paper(full[full["method"] == method], published.iloc[:0]))
+            paired[-1]["method"] = f"{method}, {full_label}"
+            paired.append(attach_paper(sub[sub["method"] == method], published))
+            paired[-1]["method"] = f"{method}, {sub_label}"
+        table = pd.concat(paired, ignore_index=True)
+        order = {s: i for i, s in enumerate(dict.fromkeys(sub["setting"]))}
+        return table.sort_values("setting", key=lambda s: s.map(order), kind="stable").reset_index(drop=True)
+
+    def caption(self, config):
+        s, t3 = self.settings(config), config["table3"]
+        return (
+            f"Table 3 on {every_nth_frame(s['step'])} (not in the paper) beside "
+            f"{every_nth_frame(t3['step'])}: e3D with ground-truth cameras, TNH (exact fit, "
+            f"{s['tnh']['solver']}) and the kernel regularizer; paper (every 10th frame) in parentheses."
+        )

@@ -1,0 +1,198 @@
+"""What every experiment is: the unit that the pipeline, the notebooks and the report are generic over.
+
+An :class:`Experiment` owns everything about one table (a paper table, or one of ours beyond the
+paper): the jobs its config block declares, how one job runs (arrays in, a tidy frame and named
+arrays out), how the jobs' rows are summarised into the table, the paper's numbers, the caption, the
+render options, its figures and each job's threads and resources. The Snakemake rules in
+``workflow/rules/experiments.smk`` know nothing about any particular table: they ask the registry
+(:mod:`nldr.experiments`) for an experiment by name and call these methods. Adding an experiment
+means a module here, its config and schema block, and its notebook (docs/ARCHITECTURE.md).
+
+No file I/O happens here apart from loading the raw data through :mod:`nldr.datasets`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+import pandas as pd
+
+from ..paper import paper_frame
+from ..tables import attach_paper
+
+__all__ = ["Job", "JobOutput", "Experiment", "summary_stats", "SD_DDOF"]
+
+#: Standard deviations over replicates (noise draws, masks, seeds) in every table are sample
+#: standard deviations (``ddof=1``); with one replicate the spread is NaN, shown as no "± sd".
+SD_DDOF = 1
+
+
+def summary_stats(values, prefix: str, *, extremes: bool = False) -> dict[str, float]:
+    """Mean and sample sd (:data:`SD_DDOF`) of replicate values, as table metrics; with
+    ``extremes`` also their min and max.
+
+    Parameters
+    ----------
+    values : 1-d array-like of float
+        One value per replicate (NaN entries are dropped, as unavailable runs).
+    prefix : str
+        Metric name; the keys are ``prefix``, ``prefix_sd`` (and ``prefix_min``, ``prefix_max``).
+    extremes : bool, default False
+        Also report the smallest and largest replicate.
+
+    Returns
+    -------
+    dict
+        NaN where undefined (no replicate; sd with a single replicate).
+    """
+    v = pd.Series(values, dtype=float).dropna()
+    n = len(v)
+    stats = {
+        prefix: float(v.mean()) if n else np.nan,
+        f"{prefix}_sd": float(v.std(ddof=SD_DDOF)) if n > SD_DDOF else np.nan,
+    }
+    if extremes:
+        stats[f"{prefix}_min"] = float(v.min()) if n else np.nan
+        stats[f"{prefix}_max"] = float(v.max()) if n else np.nan
+    return stats
+
+
+@dataclass(frozen=True)
+class Job:
+    """One unit of work: ``id`` names its files (``runs/<experiment>/<id>.csv``), ``params`` are the
+    values that differ between the experiment's jobs (seed, noise level, sequence, ...)."""
+
+    id: str
+    params: Mapping = field(default_factory=dict)
+
+
+@dataclass
+class JobOutput:
+    """What one job produces: tidy ``rows`` (one per method, or per evaluated model) and named
+    ``arrays`` (reconstructions, masks, ...; may be empty). The pipeline writes both, atomically."""
+
+    rows: pd.DataFrame
+    arrays: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+class Experiment:
+    """Base class; subclasses set the class attributes and implement :meth:`jobs`, :meth:`run` and
+    :meth:`summarise`.
+
+    Class attributes
+    ----------------
+    name : str
+        Config key, target name and folder name under ``results/``.
+    title : str
+        One line, for listings.
+    in_paper : bool
+        True for the paper's tables (their numbers enter the scorecard).
+    paper : list of (setting, method, metric, value) or None
+        The published numbers (:mod:`nldr.paper`), shown beside ours.
+    notebook : str or None
+        Stem of the notebook in ``notebooks/`` that explains the table; the pipeline executes it as
+        the last step of the target. None: the target is the table alone.
+    figures : tuple of str
+        Figures drawn from this experiment's runs (:meth:`draw`), ``results/figures/<name>.png``.
+    inherits : str or None
+        Config block whose keys fill the keys this experiment's block does not set.
+    gathers_with : tuple of str
+        Other experiments whose runs :meth:`table` needs beside this one's.
+    render : dict
+        Keyword arguments of :func:`nldr.tables.to_markdown` / ``to_latex`` (digits, metrics, transpose).
+    enumerates : tuple of str
+        Config keys that only say which jobs exist (seeds, counts, lists of settings); the others are
+        the settings every job runs with (:meth:`job_settings`), so changing a count or adding a seed
+        reruns no existing job.
+    figure_captions : dict
+        Figure name -> caption (Markdown).
+    """
+
+    name: ClassVar[str]
+    title: ClassVar[str]
+    in_paper: ClassVar[bool] = False
+    paper: ClassVar[list | None] = None
+    notebook: ClassVar[str | None] = None
+    figures: ClassVar[tuple[str, ...]] = ()
+    inherits: ClassVar[str | None] = None
+    gathers_with: ClassVar[tuple[str, ...]] = ()
+    render: ClassVar[dict] = {}
+    enumerates: ClassVar[tuple[str, ...]] = ()
+    figure_captions: ClassVar[dict[str, str]] = {}
+
+    # -- configuration -------------------------------------------------------------------------
+    def settings(self, config: Mapping) -> dict:
+        """This experiment's config block, completed from the block it inherits from."""
+        own = dict(config[self.name])
+        if self.inherits is None:
+            return own
+        return {**dict(config[self.inherits]), **own}
+
+    def job_settings(self, config: Mapping) -> dict:
+        """:meth:`settings` without the keys in :attr:`enumerates`: what every job runs with."""
+        return {k: v for k, v in self.settings(config).items() if k not in self.enumerates}
+
+    def jobs(self, config: Mapping) -> list[Job]:
+        """Every job the config declares, in a stable order."""
+        raise NotImplementedError
+
+    def job(self, config: Mapping, job_id: str) -> Job:
+        """The job named ``job_id``; ValueError naming the known ids otherwise."""
+        for job in self.jobs(config):
+            if job.id == job_id:
+                return job
+        raise ValueError(f"experiment {self.name!r} has no job {job_id!r} under this config")
+
+    def data_files(self, config: Mapping, job: Job | None = None) -> list[str]:
+        """Raw data files (paths relative to the data folder) that ``job`` reads (every job: None)."""
+        return []
+
+    def threads(self, config: Mapping, job: Job) -> int:
+        """BLAS threads (and worker processes) the job may use; the pipeline pins BLAS to it."""
+        return 1
+
+    def resources(self, config: Mapping, job: Job) -> dict:
+        """Scheduler resources of one job (``mem_mb``, ``runtime`` in minutes)."""
+        return {"mem_mb": 1000, "runtime": 20}
+
+    # -- computation ---------------------------------------------------------------------------
+    def run(
+        self,
+        job: Job,
+        settings: Mapping,
+        data_dir,
+        *,
+        progress: Callable[[str], None] | None = None,
+        threads: int = 1,
+    ) -> JobOutput:
+        """Run one job on the data in ``data_dir``; ``settings`` is :meth:`job_settings` of the config."""
+        raise NotImplementedError
+
+    def summarise(self, runs: pd.DataFrame) -> pd.DataFrame:
+        """The jobs' rows (concatenated) -> tidy ``setting, method, metric, value`` rows."""
+        raise NotImplementedError
+
+    def table(self, runs: pd.DataFrame, config: Mapping, others: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
+        """The canonical table: :meth:`summarise` with the paper's numbers attached (column ``paper``).
+
+        ``others`` maps each name of :attr:`gathers_with` to that experiment's concatenated runs.
+        """
+        return attach_paper(self.summarise(runs), paper_frame(self.paper or []))
+
+    # -- presentation --------------------------------------------------------------------------
+    def caption(self, config: Mapping) -> str:
+        """The table's caption (Markdown, LaTeX and the HTML report), from the config's values."""
+        raise NotImplementedError
+
+    def draw(self, figure: str, runs: pd.DataFrame, arrays: Mapping[str, Mapping], data_dir):
+        """Draw ``figure`` (one of :attr:`figures`) from the runs and ``arrays`` (job id -> that job's
+        saved arrays); returns a matplotlib Figure."""
+        raise ValueError(f"experiment {self.name!r} draws no figure {figure!r}")
+
+    @property
+    def label(self) -> str:
+        """LaTeX label of the table."""
+        return "tab:" + self.name.replace("_", "-")

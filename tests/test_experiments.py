@@ -1,0 +1,95 @@
+"""The experiment framework: one spread convention, the saved arrays' layout, jobs from the config."""
+
+import io
+
+import numpy as np
+import pandas as pd
+import pytest
+from protocol import full_config, quick_config
+
+from nldr.experiments import EXPERIMENTS, get, summary_stats
+from nldr.experiments.base import SD_DDOF
+from nldr.experiments.mocap import Reconstructions, summarise_e3d
+
+
+def test_summary_stats_is_the_sample_sd_and_nan_for_one_replicate():
+    v = np.array([1.0, 2.0, 4.0, np.nan])  # NaN: an unavailable run, dropped
+    stats = summary_stats(v, "sse", extremes=True)
+    x = v[~np.isnan(v)]
+    assert SD_DDOF == 1
+    assert stats["sse"] == pytest.approx(x.mean(), rel=1e-15)
+    assert stats["sse_sd"] == pytest.approx(np.sqrt(np.sum((x - x.mean()) ** 2) / (len(x) - 1)), rel=1e-14)
+    assert (stats["sse_min"], stats["sse_max"]) == (1.0, 4.0)
+    one = summary_stats([3.0], "e3d")
+    assert one["e3d"] == 3.0 and np.isnan(one["e3d_sd"]) and "e3d_min" not in one
+
+
+def test_every_table_uses_the_same_sd_convention():
+    runs = pd.DataFrame(
+        {
+            "sequence": ["yoga"] * 6,
+            "missing_fraction": [0.5] * 6,
+            "seed": [1, 1, 2, 2, 3, 3],
+            "method": ["TNH", "Kernel d_med"] * 3,
+            "e3d": [0.1, 0.08, 0.2, 0.15, 0.3, 0.2],
+        }
+    )
+    table = summarise_e3d(runs)
+    sd = table[(table["setting"] == "Yoga missing50") & (table["method"] == "TNH")]
+    assert sd.set_index("metric")["value"]["e3d_sd"] == pytest.approx(np.std([0.1, 0.2, 0.3], ddof=1))
+    table2 = get("table2").summarise(
+        pd.DataFrame(
+            {
+                "p": [0.1] * 3,
+                "seed": [1, 2, 3],
+                "method": ["mean"] * 3,
+                "sse": [10.0, 12.0, 17.0],
+                "available": [True] * 3,
+                "converged": [True] * 3,
+            }
+        )
+    )
+    got = table2.set_index("metric")["value"]["sse_sd"]
+    assert got == pytest.approx(np.std([10.0, 12.0, 17.0], ddof=1))
+
+
+def test_reconstructions_round_trip_through_npz():
+    rng = np.random.default_rng(0)
+    rec = Reconstructions(
+        shapes={"TNH": rng.random((4, 9)), "Kernel d_med": rng.random((4, 9))},
+        mask=rng.random((4, 3)) > 0.5,
+        ground_truth=rng.random((4, 9)),
+        cameras={"rigid": rng.random((4, 2, 3)), "TNH": rng.random((4, 2, 3))},
+        extra={"tau_search": rng.random((5, 2))},
+    )
+    buffer = io.BytesIO()
+    np.savez(buffer, **rec.to_arrays())
+    buffer.seek(0)
+    back = Reconstructions.from_arrays(np.load(buffer))
+    assert list(back.shapes) == ["TNH", "Kernel d_med"]
+    for name in rec.shapes:
+        np.testing.assert_array_equal(back.shapes[name], rec.shapes[name])
+    assert set(back.cameras) == {"rigid", "TNH"} and set(back.extra) == {"tau_search"}
+    np.testing.assert_array_equal(back.mask, rec.mask)
+
+
+@pytest.mark.parametrize("config", [full_config(), quick_config()], ids=["full", "quick"])
+def test_jobs_follow_the_config(config):
+    t1, t2, t3 = config["table1"], config["table2"], config["table3"]
+    counts = {name: len(e.jobs(config)) for name, e in EXPERIMENTS.items()}
+    assert counts["table1"] == len(t1["noise_std"]) * t1["n_draws"]
+    assert counts["table2"] == len(t2["p"]) * t2["n_masks"]
+    assert counts["table3"] == len(t3["sequences"]) * (1 + t3["n_seeds"])
+    assert counts["table2_full"] == len(t2["p"]) * config["table2_full"]["n_masks"]
+    # an inheriting experiment takes its parent's keys unless it sets them
+    settings = EXPERIMENTS["table3_full"].settings(config)
+    assert settings["step"] == config["table3_full"]["step"] and settings["tau"] == t3["tau"]
+    # enumerating keys are not job settings: adding a seed reruns no existing job
+    assert "n_masks" not in EXPERIMENTS["table2"].job_settings(config)
+
+
+def test_unknown_names_are_reported_with_the_known_ones():
+    with pytest.raises(ValueError, match="table1"):
+        get("table9")
+    with pytest.raises(ValueError, match="no job"):
+        get("table1").job(full_config(), "std9_seed1")
