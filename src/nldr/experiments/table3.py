@@ -173,8 +173,8 @@ def run_sequence(
         Receives one line per finished method.
     n_jobs : int, default 1
         Run the width criteria in up to this many worker processes (one BLAS thread each) instead of
-        one after another; the results are identical. Pays on long sequences (drink, every frame:
-        two 5-minute solves), where one solve gains little from a second BLAS thread.
+        one after another; the results are identical. Pays on long sequences (drink, every frame),
+        where one solve gains little from a second BLAS thread (docs/PERFORMANCE.md).
 
     Returns
     -------
