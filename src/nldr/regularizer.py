@@ -59,10 +59,10 @@ import scipy.sparse as sp
 from scipy.optimize import least_squares, minimize
 from scipy.sparse.linalg import LinearOperator, aslinearoperator
 
+from ._spectral import check_eigensolver, cubic_threshold, leading_eigenpairs, shrink
 from ._validation import as_float_matrix, check_count, check_positive
 from .data_terms import DataTerm
 from .kernels import center_kernel, rbf_kernel_vjp, squared_distances
-from .robust_kpca import _check_eigensolver, _leading_eigenpairs, _shrink, _threshold
 
 __all__ = [
     "RegularizerResult",
@@ -162,8 +162,8 @@ def _spectrum(K: np.ndarray, tau: float, rho: float, eigensolver: str = "full", 
         lam, U = np.linalg.eigh(K)
         lam, U = lam[::-1], U[:, ::-1]  # decreasing, as in nldr.robust_kpca
     else:
-        lam, U = _leading_eigenpairs(K, _threshold(tau, rho), eigensolver, expected)
-    return lam, U, _shrink(lam, tau, rho)
+        lam, U = leading_eigenpairs(K, cubic_threshold(tau, rho), eigensolver, expected)
+    return lam, U, shrink(lam, tau, rho)
 
 
 class _RankHint:
@@ -178,7 +178,7 @@ def _reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver="auto
 
     ``eigensolver="full"`` is the reference: every eigenpair, ``dE/dK = U diag(rho gap) U^T`` (O(n^3)).
     Otherwise only the eigenpairs above the cubic's threshold are computed (see the maintenance note
-    of :mod:`nldr.robust_kpca`) and ``dE/dK = rho (K - C^T C)`` is formed from the kept ones, O(n^2 r)
+    of :mod:`nldr._spectral`) and ``dE/dK = rho (K - C^T C)`` is formed from the kept ones, O(n^2 r)
     for rank r; the spectrum returned then holds only those eigenpairs.
     """
     K_rbf = _rbf(S, gamma)
@@ -253,7 +253,7 @@ def reduced_energy(
         Envelope-theorem gradient (see the module's maintenance note).
     """
     S, gamma, tau, rho = _check_common(data_term, S, gamma, tau, rho)
-    eigensolver = _check_eigensolver(eigensolver)
+    eigensolver = check_eigensolver(eigensolver)
     value, grad, _ = _reduced_value_grad(S, data_term, gamma, tau, rho, bool(center), eigensolver)
     return float(value), grad
 
@@ -281,7 +281,7 @@ def optimal_kernel_factor(
     K = _rbf(S, gamma)
     if center:
         K = center_kernel(K)
-    _, U, l = _spectrum(K, tau, rho, _check_eigensolver(eigensolver))
+    _, U, l = _spectrum(K, tau, rho, check_eigensolver(eigensolver))
     return _kernel_factor(l, U)
 
 
@@ -755,7 +755,7 @@ def minimize_regularized(
     gtol = check_positive(gtol, "gtol")
     lm_max_iter = check_count(lm_max_iter, "lm_max_iter")
     lm_tol = check_positive(lm_tol, "lm_tol")
-    eigensolver = _check_eigensolver(eigensolver)
+    eigensolver = check_eigensolver(eigensolver)
     center = bool(center)
     hint = _RankHint()
 

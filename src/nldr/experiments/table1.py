@@ -16,7 +16,7 @@ from sklearn.neighbors import KNeighborsClassifier
 
 from .._validation import as_float_matrix, check_positive
 from ..kernels import center_cross_kernel, center_kernel, rbf_kernel
-from ..robust_kpca import _shrink
+from ..robust_kpca import shrink_eigenvalues
 
 __all__ = ["spectral_kernel_errors", "run_noise_level", "summarise", "figure3_curves"]
 
@@ -115,7 +115,7 @@ def run_noise_level(
 
     ranks = np.arange(1, max_rank + 1)
     kpca_spectra = np.where(np.arange(n)[None, :] < ranks[:, None], np.maximum(lam, 0.0)[None, :], 0.0)
-    cfs_l = np.stack([_shrink(lam, tau, 1.0) for tau in taus])
+    cfs_l = np.stack([shrink_eigenvalues(lam, tau, 1.0) for tau in taus])
     kpca_err = spectral_kernel_errors(U, K_gt, kpca_spectra)
     cfs_err = spectral_kernel_errors(U, K_gt, cfs_l**2)
 
