@@ -42,7 +42,7 @@ def random_mask(shape: tuple[int, int], p: float, seed: int) -> np.ndarray:
 def _ours(W, mask, params):
     S0 = mean_impute(W, mask)
     res = minimize_regularized(MaskedLeastSquares(W, mask), S0, **params)
-    return res.S, res.converged, res.n_inner
+    return res.x, res.success, res.nit
 
 
 def _mean(W, mask, params):
