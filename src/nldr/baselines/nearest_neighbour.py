@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mean import _check_masked_matrix
+from ._masked import check_masked_matrix
 
 __all__ = ["NearestNeighbourResult", "nearest_neighbour_impute"]
 
@@ -67,7 +67,7 @@ def nearest_neighbour_impute(W, mask) -> NearestNeighbourResult:
     ValueError
         If the shapes disagree or an observed entry is not finite.
     """
-    W, mask = _check_masked_matrix(W, mask, require_observed_columns=False)
+    W, mask = check_masked_matrix(W, mask, require_observed_columns=False)
     complete = np.flatnonzero(mask.all(axis=1))
     if complete.size == 0:
         return NearestNeighbourResult(available=False, X=None, neighbour=None, n_complete_rows=0)

@@ -35,7 +35,7 @@ from scipy.optimize import minimize
 
 from .._validation import as_float_matrix, check_count, check_positive
 from ..kernels import rbf_kernel_vjp, squared_distances
-from .mean import _check_masked_matrix, _mean_fill
+from ._masked import check_masked_matrix, mean_fill
 
 __all__ = ["PKPCAResult", "pkpca_impute", "pkpca_objective"]
 
@@ -166,7 +166,7 @@ def pkpca_impute(
         Starting from mean imputation; ``converged`` is False if ``max_iter`` outer iterations ran
         without q settling and the inner solve converging.
     """
-    W, mask = _check_masked_matrix(W, mask)
+    W, mask = check_masked_matrix(W, mask)
     gamma = check_positive(gamma, "gamma")
     n = W.shape[0]
     if n < 3:
@@ -186,7 +186,7 @@ def pkpca_impute(
     check_count(inner_max_iter, "inner_max_iter")
     gtol = check_positive(gtol, "gtol")
 
-    X = _mean_fill(W, mask)
+    X = mean_fill(W, mask)
     missing = ~mask
 
     def choose_q() -> int:

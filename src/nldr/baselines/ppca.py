@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._validation import check_count
-from .mean import _check_masked_matrix, _mean_fill
+from ._masked import check_masked_matrix, mean_fill
 
 _NOISE_FLOOR = 1e-6  # sigma^2 >= this times the mean column variance of the mean-imputed data
 _OVERRELAXATION_GROWTH = 1.1  # Salakhutdinov & Roweis's factor for the step multiplier
@@ -148,7 +148,7 @@ def ppca_log_likelihood(W, mask, mean, components, noise_variance) -> float:
     float
         sum over rows of log N(y_o; mean_o, W_o W_o^T + noise_variance I).
     """
-    W, mask = _check_masked_matrix(W, mask, require_observed_columns=False)
+    W, mask = check_masked_matrix(W, mask, require_observed_columns=False)
     mean = np.asarray(mean, dtype=np.float64)
     components = np.asarray(components, dtype=np.float64)
     if mean.shape != (W.shape[1],):
@@ -194,7 +194,7 @@ def ppca_impute(
     Initialised from the complete-data PPCA solution on the mean-imputed matrix. The noise variance
     is kept above ``1e-6`` times the mean initial variance (see the module notes).
     """
-    W, mask = _check_masked_matrix(W, mask)
+    W, mask = check_masked_matrix(W, mask)
     n, d = W.shape
     if isinstance(n_components, bool) or not isinstance(n_components, int | np.integer):
         raise ValueError(f"n_components must be an integer; got {n_components!r}")
@@ -206,7 +206,7 @@ def ppca_impute(
     q = int(n_components)
     n_observed = int(mask.sum())
 
-    X0 = _mean_fill(W, mask)
+    X0 = mean_fill(W, mask)
     mu, C, s2 = _pca_init(X0, q)
     s2_floor = _NOISE_FLOOR * max(float(np.mean(X0.var(axis=0))), np.finfo(float).tiny)
     s2 = max(s2, s2_floor)

@@ -32,7 +32,7 @@ from scipy.optimize import minimize
 
 from .._validation import as_float_matrix, check_count, check_positive
 from ..kernels import center_kernel, squared_distances
-from .mean import _check_masked_matrix, _mean_fill
+from ._masked import check_masked_matrix, mean_fill
 
 __all__ = ["KernelSubspace", "RKPCAResult", "fit_kernel_subspace", "rkpca_energy", "rkpca_impute"]
 
@@ -182,7 +182,7 @@ def rkpca_energy(Y, W, mask, subspace: KernelSubspace, weight: float) -> tuple[f
     gradient : array, shape (m, d)
     """
     Y = as_float_matrix(Y, "Y")
-    W, mask = _check_masked_matrix(W, mask, require_observed_columns=False)
+    W, mask = check_masked_matrix(W, mask, require_observed_columns=False)
     if W.shape != Y.shape:
         raise ValueError(f"W must have the shape of Y; got W {W.shape} and Y {Y.shape}")
     if Y.shape[1] != subspace.X_fit.shape[1]:
@@ -289,7 +289,7 @@ def rkpca_impute(
     are exactly the stationary points of F, reached in one quasi-Newton solve instead of many slow
     outer sweeps; F is also the sum of the discarded eigenvalues of the centred kernel.
     """
-    W, mask = _check_masked_matrix(W, mask)
+    W, mask = check_masked_matrix(W, mask)
     gamma = check_positive(gamma, "gamma")
     n = W.shape[0]
     if n < 3:
@@ -300,7 +300,7 @@ def rkpca_impute(
     check_count(inner_max_iter, "inner_max_iter")
     gtol = check_positive(gtol, "gtol")
 
-    Y = _mean_fill(W, mask)
+    Y = mean_fill(W, mask)
     missing = ~mask
     free = missing if not np.isfinite(weight) else np.ones_like(mask)
 
