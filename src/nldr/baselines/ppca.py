@@ -28,11 +28,13 @@ can creep slowly, in which case ``converged`` is False after ``max_iter``.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from .._validation import check_count
+from ..result import SolverResult, status_from
 from ._masked import check_masked_matrix, mean_fill
 
 _NOISE_FLOOR = 1e-6  # sigma^2 >= this times the mean column variance of the mean-imputed data
@@ -40,33 +42,37 @@ _OVERRELAXATION_GROWTH = 1.1  # Salakhutdinov & Roweis's factor for the step mul
 __all__ = ["PPCAResult", "ppca_impute", "ppca_log_likelihood"]
 
 
-@dataclass(frozen=True)
-class PPCAResult:
+@dataclass(kw_only=True, repr=False)
+class PPCAResult(SolverResult):
     """Outcome of ``ppca_impute``.
 
     Attributes
     ----------
-    X : array, shape (n, d)
-        Completed matrix: observed entries of W, posterior means E[y_m | y_o] at the missing ones.
-    n_iter : int
+    x : array, shape (n, d)
+        Completed matrix in the units of W: observed entries of W, posterior means E[y_m | y_o] at
+        the missing ones.
+    fun : float
+        The objective EM minimises: minus the marginal log-likelihood of the observed entries under
+        the final model (``-log_likelihood_history[-1]``).
+    status : int
+        :data:`~nldr.result.CONVERGED` when the log-likelihood change per observed entry fell below
+        ``tol``, :data:`~nldr.result.MAX_ITER` when ``max_iter`` EM iterations ran first.
+    message : str
+    nit : int
         EM iterations (M-steps) run.
-    converged : bool
-        Whether the log-likelihood change per observed entry fell below ``tol`` before ``max_iter``.
+    wall_time : float
     mean : array, shape (d,)
     components : array, shape (d, q)
         The loading matrix W of the PPCA model (columns orthogonal only at the complete-data optimum).
     noise_variance : float
-    log_likelihood : array, shape (n_iter + 1,)
+    log_likelihood_history : array, shape (nit + 1,)
         Marginal log-likelihood of the observed entries before the first and after every M-step.
     """
 
-    X: np.ndarray
-    n_iter: int
-    converged: bool
     mean: np.ndarray
     components: np.ndarray
     noise_variance: float
-    log_likelihood: np.ndarray
+    log_likelihood_history: np.ndarray
 
 
 @dataclass
@@ -187,13 +193,14 @@ def ppca_impute(
     Returns
     -------
     PPCAResult
-        ``X`` keeps the observed entries and fills the missing ones with their posterior means.
+        ``x`` keeps the observed entries and fills the missing ones with their posterior means.
 
     Notes
     -----
     Initialised from the complete-data PPCA solution on the mean-imputed matrix. The noise variance
     is kept above ``1e-6`` times the mean initial variance (see the module notes).
     """
+    start = time.perf_counter()
     W, mask = check_masked_matrix(W, mask)
     n, d = W.shape
     if isinstance(n_components, bool) or not isinstance(n_components, int | np.integer):
@@ -236,12 +243,19 @@ def ppca_impute(
         if abs(history[-1] - history[-2]) <= tol * n_observed:
             converged = True
             break
+    if converged:
+        message = f"log-likelihood change per observed entry below tol after {n_iter} EM iterations"
+    else:
+        message = f"max_iter={max_iter} EM iterations reached before the log-likelihood settled"
     return PPCAResult(
-        X=post.Y,
-        n_iter=n_iter,
-        converged=converged,
+        x=post.Y,
+        fun=-float(history[-1]),
+        status=status_from(converged),
+        message=message,
+        nit=n_iter,
+        wall_time=time.perf_counter() - start,
         mean=mu,
         components=C,
         noise_variance=s2,
-        log_likelihood=np.asarray(history),
+        log_likelihood_history=np.asarray(history),
     )

@@ -51,22 +51,22 @@ def _mean(W, mask, params):
 
 def _nn(W, mask, params):
     res = nearest_neighbour_impute(W, mask)
-    return res.X, True, 0
+    return res.x, True, 0
 
 
 def _ppca(W, mask, params):
     res = ppca_impute(W, mask, **params)
-    return res.X, res.converged, res.n_iter
+    return res.x, res.success, res.nit
 
 
 def _pkpca(W, mask, params):
     res = pkpca_impute(W, mask, **params)
-    return res.X, res.converged, res.n_iter
+    return res.x, res.success, res.nit
 
 
 def _rkpca(W, mask, params):
     res = rkpca_impute(W, mask, **params)
-    return res.X, res.converged, res.n_iter
+    return res.x, res.success, res.nit
 
 
 _RUNNERS: dict[str, Callable] = {
