@@ -19,7 +19,7 @@ import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from ._spectral import EIGENSOLVERS, check_eigensolver, cubic_threshold, leading_eigenpairs, shrink
+from ._spectral import EIGENSOLVERS, check_eigensolver, cubic_threshold, leading_eigenpairs, shrink, spectrum
 from ._validation import check_positive, check_symmetric_kernel
 from .kernels import center_cross_kernel, center_kernel, rbf_kernel
 
@@ -178,6 +178,11 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         Kernel-mismatch weight; only tau / rho matters.
     center : bool, default=True
         Centre the kernel in feature space before the decomposition (as kernel PCA does).
+    eigensolver : {"auto", "partial", "full"}, default="auto"
+        How to decompose the training kernel. "full": every eigenpair (``numpy.linalg.eigh``);
+        "partial": only those above :func:`rank_penalty_threshold`, the only ones kept; "auto":
+        "partial" for n_samples >= 300 (see the maintenance notes of :mod:`nldr._spectral`). The
+        three agree up to rounding.
 
     Attributes
     ----------
@@ -187,7 +192,6 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
     singular_values_ : array, shape (n_components_,), shrunk values l (``l**2 <= lambda``)
     eigenvectors_ : array, shape (n_samples, n_components_)
     n_components_ : int, the rank chosen by the threshold
-    spectrum_ : RankPenaltySpectrum, the full solution (every eigenpair)
     kernel_column_means_ : array, shape (n_samples,), column means of the uncentred training kernel
     n_features_in_ : int
 
@@ -195,14 +199,19 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
     -----
     ``transform`` projects new points onto the principal axes of the training features and scales
     each coordinate by l_i / sqrt(lambda_i), the same shrinkage the fit applied, so that
-    ``transform(X_fit_)`` equals ``fit_transform``'s output ``U diag(l)`` = C^T.
+    ``transform(X_fit_)`` equals ``fit_transform``'s output ``U diag(l)`` = C^T (up to rounding).
+    The kernel is decomposed as computed, not symmetrised first (the centred kernel is symmetric
+    only up to rounding), so with ``eigensolver="full"`` the coordinates are exactly those of
+    ``lam, U = numpy.linalg.eigh(K)`` reversed to decreasing order: ``U[:, :k] * l[:k]`` for the
+    training points and ``(K_new @ U[:, :k]) * (l[:k] / lam[:k])`` for new points.
     """
 
-    def __init__(self, gamma=None, tau=1.0, rho=1.0, center=True):
+    def __init__(self, gamma=None, tau=1.0, rho=1.0, center=True, eigensolver="auto"):
         self.gamma = gamma
         self.tau = tau
         self.rho = rho
         self.center = center
+        self.eigensolver = eigensolver
 
     def _kernel(self, X, Y=None):
         return rbf_kernel(X, self.gamma_, Y)
@@ -213,15 +222,16 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         self.gamma_ = 1.0 / X.shape[1] if self.gamma is None else check_positive(self.gamma, "gamma")
         tau = check_positive(self.tau, "tau")
         rho = check_positive(self.rho, "rho")
+        eigensolver = check_eigensolver(self.eigensolver)
         K = self._kernel(X)
         self.kernel_column_means_ = K.mean(axis=0)
         Kc = center_kernel(K) if self.center else K
-        self.spectrum_ = rank_penalty_spectrum(Kc, tau, rho)
-        k = self.spectrum_.rank
+        lam, U, l = spectrum(Kc, tau, rho, eigensolver)
+        k = int(np.count_nonzero(l))
         self.n_components_ = k
-        self.eigenvalues_ = self.spectrum_.eigenvalues[:k]
-        self.singular_values_ = self.spectrum_.singular_values[:k]
-        self.eigenvectors_ = self.spectrum_.eigenvectors[:, :k]
+        self.eigenvalues_ = lam[:k]
+        self.singular_values_ = l[:k]
+        self.eigenvectors_ = U[:, :k]
         self.X_fit_ = X
         return self
 
