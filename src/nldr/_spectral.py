@@ -29,9 +29,8 @@ still reduces K to tridiagonal form (the O(n^3) part every method shares) but sk
 that are not wanted. It pays only when few eigenvalues pass the threshold and n is large: below
 :data:`PARTIAL_MIN_N` the full ``numpy.linalg.eigh`` is faster, and when more than
 :data:`PARTIAL_MAX_FRACTION` of the spectrum passes, MRRR's per-eigenvector work exceeds the full
-divide-and-conquer (measured with benchmarks/bench_closed_form.py; the figures are in
-docs/PERFORMANCE.md). :func:`leading_eigenpairs` chooses, and falls back to the full decomposition if
-the partial one fails.
+divide-and-conquer (both measured by benchmarks/bench_closed_form.py). :func:`leading_eigenpairs`
+chooses, and falls back to the full decomposition if the partial one fails.
 """
 
 from __future__ import annotations

@@ -19,11 +19,11 @@ sigma^2) never decreases, which the tests check.
 
 Two practical additions, both keeping that guarantee. (1) Over-relaxed EM (Salakhutdinov & Roweis
 2003): each update is stretched by a factor that grows while the likelihood keeps rising and drops
-back to the plain EM step (which never lowers it) otherwise; on oil flow it needs 5-20x fewer
-iterations. (2) A floor on sigma^2 (1e-6 times the mean variance of the mean-imputed data). With
-exactly low-rank data, or with many missing entries and a large q (oil flow at p = 0.5, q >= 7), the
+back to the plain EM step (which never lowers it) otherwise, so it needs fewer iterations than plain
+EM. (2) A floor on sigma^2 (1e-6 times the mean variance of the mean-imputed data). With exactly
+low-rank data, or with many missing entries and a large q (oil flow at p = 0.5, q >= 7), the
 likelihood grows without bound as sigma^2 -> 0; at the floor the iteration stays well defined but
-can creep slowly, in which case ``converged`` is False after ``max_iter``.
+can creep slowly, in which case ``success`` is False after ``max_iter``.
 """
 
 from __future__ import annotations
