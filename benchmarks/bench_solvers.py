@@ -33,7 +33,8 @@ from nldr.experiments.table2 import random_mask
 from nldr.experiments.mocap import WIDTHS
 from nldr.nrsfm import OrthographicReprojection, TraceNormHeuristic
 from nldr.nrsfm.layout import stack_to_rows
-from nldr.regularizer import minimize_regularized, optimal_kernel_factor, pre_image_step, reduced_energy
+from nldr.reference.regularizer import pre_image_step
+from nldr.regularizer import minimize_regularized, optimal_kernel_factor, reduced_energy
 
 
 def timed(fn, repeats: int):
@@ -87,7 +88,7 @@ def main(data_dir, out: Path, repeats: int) -> pd.DataFrame:
         for n in (100, 1000):
             X, mask, S0, term = oil_problem(data_dir, n)
             # the state after the first stage, where the later stages spend their evaluations
-            S1 = minimize_regularized(term, S0, gamma=0.075, tau=0.1, rho_max=1.0).S
+            S1 = minimize_regularized(term, S0, gamma=0.075, tau=0.1, rho_max=1.0).x
             compare(
                 rows,
                 "evaluation",
@@ -137,7 +138,7 @@ def main(data_dir, out: Path, repeats: int) -> pd.DataFrame:
                     term, S0, gamma=0.075, tau=0.1, eigensolver=e
                 ),
                 3 if n == 100 else 1,
-                lambda r, X=X: float(np.sum((r.S - X) ** 2)),
+                lambda r, X=X: float(np.sum((r.x - X) ** 2)),
             )
 
         data, X0, gamma = pickup_problem(data_dir)

@@ -110,9 +110,9 @@ W = np.where(mask, X, np.nan)
 res = minimize_regularized(MaskedLeastSquares(W, mask), mean_impute(W, mask), gamma=gamma, **ours)
 print(res.message)
 print(
-    f"SSE: mean imputation {np.sum((mean_impute(W, mask) - X) ** 2):.2f}, ours {np.sum((res.S - X) ** 2):.2f}"
+    f"SSE: mean imputation {np.sum((mean_impute(W, mask) - X) ** 2):.2f}, ours {np.sum((res.x - X) ** 2):.2f}"
 )
-print(f"{res.n_outer} rho stages, {res.n_inner} inner iterations, {res.wall_time:.2f} s")
+print(f"{res.n_stages} rho stages, {res.nit} inner iterations, {res.wall_time:.2f} s")
 
 # %%
 fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 3.4))
@@ -122,8 +122,8 @@ for stage, rho in enumerate(res.rho_history):
 ax1.set_xlabel("inner iteration")
 ax1.set_ylabel("energy at the stage's rho")
 ax1.legend(fontsize=7)
-ax2.step(np.arange(res.n_outer), res.rank_history, where="mid")
-ax2.set_xticks(np.arange(res.n_outer), [f"{r:g}" for r in res.rho_history])
+ax2.step(np.arange(res.n_stages), res.rank_history, where="mid")
+ax2.set_xticks(np.arange(res.n_stages), [f"{r:g}" for r in res.rho_history])
 ax2.set_xlabel("rho")
 ax2.set_ylabel("rank of C")
 fig.tight_layout()

@@ -16,7 +16,9 @@ from nldr.baselines import (
     rkpca_energy,
     rkpca_impute,
 )
+from nldr.baselines._lbfgs import outer_loop_outcome
 from nldr.kernels import center_kernel, d_med_width, rbf_kernel
+from nldr.result import CONVERGED, INACCURATE, MAX_ITER
 
 
 @pytest.fixture(autouse=True)
@@ -82,14 +84,17 @@ def test_nearest_neighbour_copies_from_brute_force_nearest_complete_row(rng):
     mask[3] = False  # a row with nothing observed: every distance is 0, ties go to the first donor
     res = nearest_neighbour_impute(with_nans(X, mask), mask)
     complete = np.flatnonzero(mask.all(axis=1))
-    assert res.available and res.n_complete_rows == complete.size > 1
+    assert res.success and res.n_complete_rows == complete.size > 1
     for i in range(X.shape[0]):
         o = mask[i]
         dist = [np.sum((X[i, o] - X[c, o]) ** 2) for c in complete]
         donor = i if o.all() else complete[int(np.argmin(dist))]
         assert res.neighbour[i] == donor
-        np.testing.assert_array_equal(res.X[i], np.where(o, X[i], X[donor]))
+        np.testing.assert_array_equal(res.x[i], np.where(o, X[i], X[donor]))
     assert res.neighbour[3] == complete[0]
+    # fun: the summed squared distance of every row to its donor over the row's observed columns
+    expected = sum(np.sum((X[i, mask[i]] - X[res.neighbour[i], mask[i]]) ** 2) for i in range(X.shape[0]))
+    assert res.fun == pytest.approx(expected, rel=1e-12) and res.nit == 0
 
 
 def test_nearest_neighbour_reports_not_available_without_complete_rows(rng):
@@ -97,7 +102,8 @@ def test_nearest_neighbour_reports_not_available_without_complete_rows(rng):
     mask = np.ones_like(X, dtype=bool)
     mask[np.arange(8), np.arange(8) % 4] = False  # one missing entry in every row
     res = nearest_neighbour_impute(with_nans(X, mask), mask)
-    assert not res.available and res.X is None and res.neighbour is None and res.n_complete_rows == 0
+    assert not res.success and res.status == INACCURATE and "NA" in res.message
+    assert res.x is None and res.neighbour is None and res.n_complete_rows == 0 and np.isnan(res.fun)
 
 
 # --------------------------------------------------------------------------------------- PPCA
@@ -110,10 +116,10 @@ def test_ppca_recovers_exactly_low_rank_data(rng):
     res = ppca_impute(with_nans(X, mask), mask, n_components=r)
     # The noise floor sigma^2 >= 1e-6 * mean variance shrinks the posterior mean by a relative
     # amount of order sigma^2 / (smallest signal variance), ~1e-6 here; mean imputation errs by O(1).
-    err = np.sqrt(np.mean((res.X - X)[~mask] ** 2))
-    assert res.converged
+    err = np.sqrt(np.mean((res.x - X)[~mask] ** 2))
+    assert res.success
     assert err < 1e-4 * X.std()
-    np.testing.assert_array_equal(res.X[mask], X[mask])
+    np.testing.assert_array_equal(res.x[mask], X[mask])
 
 
 @pytest.mark.parametrize("accelerate", [False, True])
@@ -122,8 +128,8 @@ def test_ppca_log_likelihood_never_decreases(rng, accelerate):
     X = rng.normal(size=(n, 2)) @ rng.normal(size=(2, d)) + 0.1 * rng.normal(size=(n, d))
     mask = random_mask(rng, X.shape, 0.3)
     res = ppca_impute(with_nans(X, mask), mask, n_components=2, accelerate=accelerate, tol=1e-9)
-    ll = res.log_likelihood
-    assert res.converged and ll.size == res.n_iter + 1
+    ll = res.log_likelihood_history
+    assert res.success and ll.size == res.nit + 1 and res.fun == -ll[-1]
     assert np.all(np.diff(ll) >= -1e-10 * np.abs(ll[1:]))
     assert ll[-1] > ll[0]
 
@@ -146,9 +152,9 @@ def test_ppca_reports_the_final_likelihood_and_iteration_limit(rng):
     X = rng.normal(size=(30, 5))
     mask = random_mask(rng, X.shape, 0.2)
     res = ppca_impute(with_nans(X, mask), mask, n_components=2, max_iter=2, tol=0.0)
-    assert res.n_iter == 2 and not res.converged
+    assert res.nit == 2 and not res.success and res.status == MAX_ITER
     ll = ppca_log_likelihood(with_nans(X, mask), mask, res.mean, res.components, res.noise_variance)
-    np.testing.assert_allclose(ll, res.log_likelihood[-1], rtol=1e-12)
+    np.testing.assert_allclose(ll, res.log_likelihood_history[-1], rtol=1e-12)
 
 
 # --------------------------------------------------------------------------------------- PKPCA
@@ -177,17 +183,17 @@ def test_pkpca_beats_mean_imputation_on_a_curve(rng):
     gamma = d_med_width(X)
     res = pkpca_impute(with_nans(X, mask), mask, gamma)
     err_mean = np.sum((mean_impute(with_nans(X, mask), mask) - X) ** 2)
-    assert res.converged and res.n_iter >= 1
-    assert res.objective[-1] < res.objective[0]
-    np.testing.assert_array_equal(res.X[mask], X[mask])
-    assert np.sum((res.X - X) ** 2) < err_mean
+    assert res.success and res.nit >= 1 and res.fun == res.objective_history[-1]
+    assert res.objective_history[-1] < res.objective_history[0]
+    np.testing.assert_array_equal(res.x[mask], X[mask])
+    assert np.sum((res.x - X) ** 2) < err_mean
 
 
 def test_pkpca_without_missing_entries_returns_the_data(rng):
     X = rng.normal(size=(10, 3))
     res = pkpca_impute(X, np.ones_like(X, dtype=bool), 0.5)
-    assert res.converged and res.n_iter == 0
-    np.testing.assert_array_equal(res.X, X)
+    assert res.success and res.nit == 0
+    np.testing.assert_array_equal(res.x, X)
 
 
 # --------------------------------------------------------------------------------------- RKPCA
@@ -245,20 +251,38 @@ def test_rkpca_beats_mean_imputation_on_a_curve(rng, weight):
     mask = random_mask(rng, X.shape, 0.15)
     res = rkpca_impute(with_nans(X, mask), mask, d_med_width(X), n_components=8, weight=weight)
     err_mean = np.sum((mean_impute(with_nans(X, mask), mask) - X) ** 2)
-    assert res.converged and res.n_components == 8
-    assert res.energy[-1] < res.energy[0]
-    np.testing.assert_array_equal(res.X[mask], X[mask])
-    assert np.sum((res.X - X) ** 2) < err_mean
+    assert res.success and res.n_components == 8 and res.fun == res.energy_history[-1]
+    assert res.energy_history[-1] < res.energy_history[0]
+    np.testing.assert_array_equal(res.x[mask], X[mask])
+    assert np.sum((res.x - X) ** 2) < err_mean
 
 
 def test_rkpca_chooses_components_by_trace_fraction(rng):
     X = curve(40, rng)
     mask = random_mask(rng, X.shape, 0.1)
     res = rkpca_impute(with_nans(X, mask), mask, d_med_width(X), n_components=0.9)
-    Xc = center_kernel(rbf_kernel(res.X, d_med_width(X)))
+    Xc = center_kernel(rbf_kernel(res.x, d_med_width(X)))
     nu = np.sort(np.linalg.eigvalsh(Xc))[::-1]
     q_expected = int(np.searchsorted(np.cumsum(nu) / nu.sum(), 0.9 - 1e-12) + 1)
-    assert res.converged and res.n_components == q_expected == res.n_components_history[-1]
+    assert res.success and res.n_components == q_expected == res.n_components_history[-1]
+
+
+def test_kernel_baselines_report_iteration_limits(rng):
+    X = curve(30, rng)
+    mask = random_mask(rng, X.shape, 0.2)
+    W = with_nans(X, mask)
+    for res in (
+        pkpca_impute(W, mask, 0.5, max_iter=1, inner_max_iter=1),
+        rkpca_impute(W, mask, 0.5, n_components=2, max_iter=1, inner_max_iter=1),
+    ):
+        assert not res.success and res.status == MAX_ITER and res.nit == 1 and res.n_inner_iter == 1
+        assert "max_iter=1" in res.message and res.wall_time > 0
+
+
+def test_an_abnormal_line_search_stop_is_inaccurate():
+    assert outer_loop_outcome(False, 2, 20, "ABNORMAL")[0] == INACCURATE
+    assert outer_loop_outcome(False, 1, 20, "STOP: TOTAL NO. OF ITERATIONS")[0] == MAX_ITER
+    assert outer_loop_outcome(True, 0, 3, "CONVERGENCE")[0] == CONVERGED
 
 
 # --------------------------------------------------------------------------------------- inputs

@@ -1,25 +1,33 @@
-"""Tests of the penalty-method solver (Algorithm 1) and its building blocks."""
+"""Tests of the penalty-method solver (Algorithm 1), its building blocks, and its reference (the
+literal alternation of nldr.reference.regularizer)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
+from nldr._spectral import leading_eigenpairs
 from nldr.data_terms import MaskedLeastSquares
 from nldr.kernels import center_kernel, rbf_kernel
-from nldr.regularizer import (
-    RegularizerResult,
+from nldr.reference.regularizer import (
     kernel_mismatch_jacobian,
     kernel_mismatch_residuals,
+    minimize_regularized_alternation,
+    pre_image_step,
+)
+from nldr.regularizer import (
+    RegularizerResult,
     minimize_regularized,
     optimal_kernel_factor,
-    pre_image_step,
+    penalty_schedule,
     reduced_energy,
     regularized_energy,
 )
-from nldr.robust_kpca import closed_form_rank_penalty
+from nldr.result import CONVERGED, MAX_ITER, SolverResult
+from nldr.robust_kpca import closed_form_rank_penalty, rank_penalty_threshold
 
 
 def _central_difference(fun, S, h=1e-6):
@@ -31,6 +39,38 @@ def _central_difference(fun, S, h=1e-6):
         e[k] = h
         cols.append((fun((x + e).reshape(S.shape)) - fun((x - e).reshape(S.shape))) / (2 * h))
     return np.stack(cols, axis=1)
+
+
+def _finite_difference_pre_image_step(S, C, data_term, *, gamma, rho, max_iter, tol):
+    """The S-step of :func:`pre_image_step` with a finite-difference Jacobian on the analytic pattern.
+
+    The same least-squares problem and solver settings, but scipy's sparse 2-point differences
+    instead of the analytic Jacobian: a check of the latter on whole LM solves.
+    """
+    shape = S.shape
+
+    def fun(x):
+        X = x.reshape(shape)
+        return np.concatenate([data_term.residuals(X), kernel_mismatch_residuals(X, C, gamma=gamma, rho=rho)])
+
+    J_f = sp.csr_matrix(data_term.jacobian(S))
+    J_k = kernel_mismatch_jacobian(S, gamma=gamma, rho=rho).copy()
+    J_k.data[:] = 1.0  # the structural non-zeros (2 d per off-diagonal pair)
+    sparsity = sp.vstack([(J_f != 0).astype(float), J_k]).tocsr()
+    res = least_squares(
+        fun,
+        S.ravel(),
+        jac="2-point",
+        jac_sparsity=sparsity,
+        method="trf",
+        tr_solver="lsmr",
+        x_scale=1.0,
+        ftol=tol,
+        xtol=tol,
+        gtol=tol,
+        max_nfev=max_iter,
+    )
+    return res.x.reshape(shape)
 
 
 def _helix(n, rng, noise=0.0):
@@ -172,40 +212,36 @@ def helix_completion():
 def test_recovers_points_on_a_curve_far_better_than_mean_imputation(helix_completion, center):
     X, mask, S0 = helix_completion
     res = minimize_regularized(MaskedLeastSquares(X, mask), S0, gamma=0.5, tau=0.1, center=center)
-    assert isinstance(res, RegularizerResult)
+    assert isinstance(res, RegularizerResult) and isinstance(res, SolverResult)
     mean_error = np.sum((S0 - X) ** 2)
-    error = np.sum((res.S - X) ** 2)
+    error = np.sum((res.x - X) ** 2)
     assert error < 0.3 * mean_error, (error, mean_error)
-    assert res.S.shape == X.shape and res.C.shape == (60, 60)
-    assert res.n_outer == len(res.rho_history) == len(res.rank_history) == len(res.stage_energy)
-    assert res.energy_history.shape == res.stage_of_iteration.shape
-    assert res.wall_time > 0 and res.x is res.S
+    assert res.x.shape == X.shape and res.C.shape == (60, 60)
+    assert res.n_stages == len(res.rho_history) == len(res.rank_history) == len(res.stage_energy)
+    assert res.energy_history.shape == res.stage_of_iteration.shape == (res.nit,)
+    assert res.fun == res.stage_energy[-1]
+    assert res.wall_time > 0
+    assert repr(res).startswith("RegularizerResult(success=True, status=0,") and "\n" not in repr(res)
 
 
 @pytest.mark.parametrize("center", [False, True])
 def test_alternation_descends_and_improves_on_mean_imputation(helix_completion, center):
-    # The literal alternation crawls (see the module docstring), so only a short run is checked.
+    # The literal alternation crawls (see its module docstring), so only a short run is checked.
     X, mask, S0 = helix_completion
     term = MaskedLeastSquares(X, mask)
-    res = minimize_regularized(
-        term,
-        S0,
-        gamma=0.5,
-        tau=0.1,
-        center=center,
-        method="alternation",
-        rho_max=10.0,
-        max_inner=10,
-        lm_max_iter=5,
+    res = minimize_regularized_alternation(
+        term, S0, gamma=0.5, tau=0.1, center=center, rho_max=10.0, max_inner=10, lm_max_iter=5
     )
-    assert np.sum((res.S - X) ** 2) < 0.9 * np.sum((S0 - X) ** 2)
-    assert res.n_inner == res.energy_history.size == 20
-    for k in range(res.n_outer):
+    assert isinstance(res, RegularizerResult)
+    assert np.sum((res.x - X) ** 2) < 0.9 * np.sum((S0 - X) ** 2)
+    assert res.nit == res.energy_history.size == 20
+    assert res.fun == res.stage_energy[-1]
+    for k in range(res.n_stages):
         e = res.energy_history[res.stage_of_iteration == k]
         assert np.all(np.diff(e) <= 1e-12 * np.abs(e[1:]))
         # The final closed-form C-step can only lower the stage's last energy further.
         assert res.stage_energy[k] <= e[-1] * (1 + 1e-12)
-    C = optimal_kernel_factor(res.S, gamma=0.5, tau=0.1, rho=10.0, center=center)
+    C = optimal_kernel_factor(res.x, gamma=0.5, tau=0.1, rho=10.0, center=center)
     np.testing.assert_allclose(res.C.T @ res.C, C.T @ C, atol=1e-10)
 
 
@@ -215,39 +251,35 @@ def test_finite_difference_pre_image_step_agrees_with_the_analytic_one(small_pro
     C = optimal_kernel_factor(S, gamma=0.4, tau=0.2, rho=3.0)
     kw = dict(gamma=0.4, rho=3.0, max_iter=30, tol=1e-12)
     S_analytic = pre_image_step(S, C, term, **kw)
-    S_fd = pre_image_step(S, C, term, jacobian="finite-difference", **kw)
+    S_fd = _finite_difference_pre_image_step(S, C, term, **kw)
     np.testing.assert_allclose(S_fd, S_analytic, atol=1e-5)
 
 
 def test_default_solver_converges_and_reports_it(helix_completion):
     X, mask, S0 = helix_completion
     res = minimize_regularized(MaskedLeastSquares(X, mask), S0, gamma=0.5, tau=0.1)
-    assert res.converged and res.success
+    assert res.success and res.status == CONVERGED
     assert "converged" in res.message
     np.testing.assert_allclose(res.rho_history, [1.0, 10.0, 100.0, 1e3, 1e4])
-    assert res.n_inner == res.energy_history.size
+    assert res.nit == res.energy_history.size
     # Within a stage L-BFGS never increases the energy.
-    for k in range(res.n_outer):
+    for k in range(res.n_stages):
         e = res.energy_history[res.stage_of_iteration == k]
         assert np.all(np.diff(e) <= 1e-9 * np.abs(e[1:]))
 
 
-@pytest.mark.parametrize("method", ["reduced", "alternation"])
-def test_iteration_limit_is_reported(helix_completion, method):
+@pytest.mark.parametrize("solver", ["reduced", "alternation"])
+def test_iteration_limit_is_reported(helix_completion, solver):
     X, mask, S0 = helix_completion
-    res = minimize_regularized(
-        MaskedLeastSquares(X, mask),
-        S0,
-        gamma=0.5,
-        tau=0.1,
-        method=method,
-        max_inner=1,
-        rho_max=10.0,
-        lm_max_iter=3,
-    )
-    assert not res.converged and not res.success
+    term = MaskedLeastSquares(X, mask)
+    kw = dict(gamma=0.5, tau=0.1, max_inner=1, rho_max=10.0)
+    if solver == "reduced":
+        res = minimize_regularized(term, S0, **kw)
+    else:
+        res = minimize_regularized_alternation(term, S0, lm_max_iter=3, **kw)
+    assert not res.success and res.status == MAX_ITER
     assert "limit" in res.message and "rho=1" in res.message
-    assert res.n_inner == 2 * 1
+    assert res.nit == 2 * 1
 
 
 # ---------------------------------------------------------------------------------------------
@@ -262,22 +294,41 @@ def test_iteration_limit_is_reported(helix_completion, method):
         (dict(gamma=-1.0), "gamma"),
         (dict(tau=0.0), "tau"),
         (dict(tau=np.nan), "tau"),
-        (dict(rho0=0.0), "rho"),
+        (dict(rho0=0.0), "rho0"),
         (dict(rho_growth=1.0), "rho_growth"),
         (dict(rho_max=0.5, rho0=1.0), "rho_max"),
-        (dict(method="newton"), "method"),
         (dict(max_inner=0), "max_inner"),
         (dict(max_inner=2.5), "max_inner"),
         (dict(tol=-1.0), "tol"),
-        (dict(jacobian="exact"), "jacobian"),
-        (dict(lm_max_iter=0), "lm_max_iter"),
+        (dict(eigensolver="lanczos"), "eigensolver"),
     ],
 )
-def test_bad_parameters_raise_naming_the_argument(small_problem, kwargs, name):
+@pytest.mark.parametrize("solver", [minimize_regularized, minimize_regularized_alternation])
+def test_bad_parameters_raise_naming_the_argument(small_problem, kwargs, name, solver):
     W, mask, S = small_problem
     args = dict(gamma=0.4, tau=0.1) | kwargs
     with pytest.raises(ValueError, match=name):
-        minimize_regularized(MaskedLeastSquares(W, mask), S, **args)
+        solver(MaskedLeastSquares(W, mask), S, **args)
+
+
+def test_bad_reference_parameters_raise_naming_the_argument(small_problem):
+    W, mask, S = small_problem
+    term = MaskedLeastSquares(W, mask)
+    with pytest.raises(ValueError, match="lm_max_iter"):
+        minimize_regularized_alternation(term, S, gamma=0.4, tau=0.1, lm_max_iter=0)
+    with pytest.raises(ValueError, match="lm_tol"):
+        minimize_regularized_alternation(term, S, gamma=0.4, tau=0.1, lm_tol=0.0)
+    with pytest.raises(ValueError, match="S0"):
+        minimize_regularized_alternation(term, S[:-1], gamma=0.4, tau=0.1)
+
+
+def test_penalty_schedule_runs_from_rho0_to_rho_max():
+    assert penalty_schedule(1.0, 10.0, 1e4) == [1.0, 10.0, 100.0, 1000.0, 10000.0]
+    # 0.1 * 3 * 3 rounds to 0.9000000000000001 > 0.9: the relative 1e-12 slack keeps that stage
+    assert penalty_schedule(0.1, 3.0, 0.9) == pytest.approx([0.1, 0.3, 0.9], rel=1e-15)
+    assert penalty_schedule(2.0, 3.0, 2.0) == [2.0]
+    with pytest.raises(ValueError, match="rho_growth"):
+        penalty_schedule(1.0, 0.5, 10.0)
 
 
 def test_bad_start_or_data_term_raises(small_problem):
@@ -313,14 +364,12 @@ def large_helix_completion():
 
 
 def test_leading_eigenpairs_are_exactly_the_ones_above_the_threshold(large_helix_completion):
-    from nldr.robust_kpca import _leading_eigenpairs, rank_penalty_threshold
-
     _, _, S0 = large_helix_completion
     K = rbf_kernel(S0, 0.5)
     t = rank_penalty_threshold(0.1, 1.0)
     full = np.linalg.eigvalsh(K)[::-1]
     for solver in ("auto", "partial", "full"):
-        lam, U = _leading_eigenpairs(K, t, solver)
+        lam, U = leading_eigenpairs(K, t, solver)
         assert lam.size == np.count_nonzero(full > t) < K.shape[0] // 4
         # Backward-stable eigensolvers: eigenvalues to n eps ||K||, eigenpairs K u = lam u likewise.
         bound = K.shape[0] * np.finfo(float).eps * np.linalg.norm(K, 2)
@@ -354,12 +403,12 @@ def test_solver_with_partial_decompositions_reproduces_the_reference_solve(large
     term = MaskedLeastSquares(X, mask)
     ref = minimize_regularized(term, S0, gamma=0.5, tau=0.1, center=center, eigensolver="full")
     new = minimize_regularized(term, S0, gamma=0.5, tau=0.1, center=center)
-    assert ref.converged and new.converged
+    assert ref.success and new.success
     np.testing.assert_array_equal(new.rank_history, ref.rank_history)
     # Both stop at the same minimum, each once a step lowers the energy by less than ftol = 1e-10
     # relative; what remains is a few times that per stage.
     np.testing.assert_allclose(new.stage_energy, ref.stage_energy, rtol=1e-8)
-    np.testing.assert_allclose(new.S, ref.S, rtol=0, atol=1e-3 * np.abs(X).max())
+    np.testing.assert_allclose(new.x, ref.x, rtol=0, atol=1e-3 * np.abs(X).max())
     np.testing.assert_allclose(new.C.T @ new.C, ref.C.T @ ref.C, rtol=0, atol=1e-3)
 
 

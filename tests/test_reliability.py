@@ -137,8 +137,8 @@ def test_duplicate_points_and_extreme_widths_stay_finite(n_unique, repeats, log_
     res = minimize_regularized(
         MaskedLeastSquares(W, mask), np.where(mask, W, 0.0), gamma=10.0**log_gamma, tau=tau, rho_max=100.0
     )
-    assert _finite(res.S, res.C, res.energy_history)
-    assert isinstance(res.converged, bool) and res.message
+    assert _finite(res.x, res.C, res.energy_history)
+    assert isinstance(res.success, bool) and res.message
 
 
 @settings(max_examples=40, deadline=None)
@@ -186,7 +186,7 @@ def test_all_missing_rows_are_filled_finitely():
     mask = np.ones(W.shape, dtype=bool)
     mask[[3, 17, 29]] = False  # three rows with no observed entry
     res = minimize_regularized(MaskedLeastSquares(W, mask), np.where(mask, W, 0.0), gamma=1.0, tau=0.1)
-    assert _finite(res.S) and res.converged
+    assert _finite(res.x) and res.success
 
 
 def test_a_frame_with_no_observed_point_stays_finite():
@@ -203,7 +203,7 @@ def test_a_frame_with_no_observed_point_stays_finite():
     res = minimize_regularized(
         OrthographicReprojection(W2d, R, mask), tnh.X, gamma=0.1, tau=1e-4, rho0=1e-3, rho_max=10.0
     )
-    assert _finite(tnh.X, res.S)
+    assert _finite(tnh.X, res.x)
 
 
 @pytest.mark.pipeline

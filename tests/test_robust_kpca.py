@@ -6,7 +6,7 @@ from scipy.optimize import minimize
 from sklearn.decomposition import KernelPCA
 from sklearn.utils.estimator_checks import check_estimator
 
-from nldr.kernels import center_kernel, rbf_kernel
+from nldr.kernels import center_cross_kernel, center_kernel, rbf_kernel
 from nldr.robust_kpca import (
     RobustKernelPCA,
     closed_form_rank_penalty,
@@ -133,9 +133,39 @@ def test_estimator_transform_is_consistent_and_matches_kpca_without_shrinkage(rn
     np.testing.assert_allclose(np.abs(est.transform(X)[:, :5]), np.abs(kpca.transform(X)), atol=1e-6)
 
 
+def test_estimator_with_the_full_eigensolver_gives_table1s_projection(rng):
+    """Table 1 projects by hand onto numpy.linalg.eigh of the centred kernel; the estimator agrees."""
+    X, X_new = rng.normal(size=(80, 5)), rng.normal(size=(30, 5))
+    gamma, tau = 0.3, 0.5
+    K = rbf_kernel(X, gamma)
+    K_new = center_cross_kernel(rbf_kernel(X_new, gamma, X), K.mean(axis=0))
+    lam, U = np.linalg.eigh(center_kernel(K))
+    lam, U = lam[::-1], U[:, ::-1]
+    l = shrink_eigenvalues(lam, tau, 1.0)
+    k = int(np.count_nonzero(l))
+    est = RobustKernelPCA(gamma=gamma, tau=tau, rho=1.0, center=True, eigensolver="full")
+    Z = est.fit_transform(X)
+    assert est.n_components_ == k > 0
+    np.testing.assert_allclose(Z, U[:, :k] * l[:k], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(est.transform(X_new), K_new @ U[:, :k] * (l[:k] / lam[:k]), rtol=0, atol=1e-12)
+
+
+def test_estimator_partial_decomposition_agrees_with_the_full_one_up_to_sign(rng):
+    X, X_new = rng.normal(size=(320, 4)), rng.normal(size=(20, 4))  # n >= 300: "auto" is partial
+    full = RobustKernelPCA(gamma=0.2, tau=2.0, eigensolver="full").fit(X)
+    for solver in ("auto", "partial"):
+        est = RobustKernelPCA(gamma=0.2, tau=2.0, eigensolver=solver).fit(X)
+        assert est.n_components_ == full.n_components_ > 0
+        np.testing.assert_allclose(est.eigenvalues_, full.eigenvalues_, rtol=0, atol=1e-10)
+        signs = np.sign(np.sum(est.eigenvectors_ * full.eigenvectors_, axis=0))
+        np.testing.assert_allclose(est.transform(X_new) * signs, full.transform(X_new), rtol=0, atol=1e-8)
+
+
 def test_estimator_rejects_bad_parameters():
     X = np.random.default_rng(0).normal(size=(10, 2))
     with pytest.raises(ValueError, match="tau"):
         RobustKernelPCA(tau=-1).fit(X)
     with pytest.raises(ValueError, match="gamma"):
         RobustKernelPCA(gamma=0).fit(X)
+    with pytest.raises(ValueError, match="eigensolver"):
+        RobustKernelPCA(eigensolver="arpack").fit(X)

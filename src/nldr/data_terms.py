@@ -21,7 +21,7 @@ import scipy.sparse as sp
 
 from ._validation import as_float_matrix
 
-__all__ = ["DataTerm", "MaskedLeastSquares"]
+__all__ = ["DataTerm", "MaskedLeastSquares", "check_start"]
 
 
 @runtime_checkable
@@ -37,6 +37,23 @@ class DataTerm(Protocol):
     def value(self, S: np.ndarray) -> float: ...
 
     def gradient(self, S: np.ndarray) -> np.ndarray: ...
+
+
+def check_start(data_term, S, name: str = "S") -> np.ndarray:
+    """Validate a data term and an estimate of its variable; return ``S`` as a float64 array.
+
+    Raises a ValueError unless ``data_term`` implements :class:`DataTerm` and ``S`` is a finite 2-d
+    array of shape ``data_term.shape``; the message names ``name``.
+    """
+    if not isinstance(data_term, DataTerm):
+        raise ValueError(
+            "data_term must implement the nldr.data_terms.DataTerm protocol "
+            f"(shape, residuals, jacobian, value, gradient); got {type(data_term).__name__}"
+        )
+    S = as_float_matrix(S, name)
+    if S.shape != tuple(data_term.shape):
+        raise ValueError(f"{name} must have the data term's shape {tuple(data_term.shape)}; got {S.shape}")
+    return S
 
 
 class MaskedLeastSquares:

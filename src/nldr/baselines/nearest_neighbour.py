@@ -3,31 +3,42 @@
 Each incomplete row copies its missing entries from the nearest *fully observed* row, the distance
 being measured on the incomplete row's observed columns only. With no fully observed row there is
 no donor: the paper prints "NA" (p = 0.5 on oil flow, where a row of 12 entries is complete with
-probability 0.5^12). We report that as a result with ``available=False`` and ``X=None`` rather than
+probability 0.5^12). We report that as a result with ``success=False`` and ``x=None`` rather than
 an exception, so that a sweep over masks records "not available" as data.
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from .mean import _check_masked_matrix
+from ..result import CONVERGED, INACCURATE, SolverResult
+from ._masked import check_masked_matrix
 
 __all__ = ["NearestNeighbourResult", "nearest_neighbour_impute"]
 
 
-@dataclass(frozen=True)
-class NearestNeighbourResult:
+@dataclass(kw_only=True, repr=False)
+class NearestNeighbourResult(SolverResult):
     """Outcome of ``nearest_neighbour_impute``.
 
     Attributes
     ----------
-    available : bool
-        False when ``W`` has no fully observed row, so 1-NN is undefined (the paper's "NA").
-    X : array, shape (n, d), or None
-        The completed matrix; None when not available.
+    x : array, shape (n, d), or None
+        The completed matrix in the units of W; None when 1-NN is not available.
+    fun : float
+        What 1-NN minimises, row by row: the summed squared distance of every row to its donor over
+        the row's observed columns (0 for fully observed rows). NaN when not available.
+    status : int
+        :data:`~nldr.result.CONVERGED` (the method is exact, there is no tolerance), or
+        :data:`~nldr.result.INACCURATE` when ``W`` has no fully observed row, so 1-NN is undefined
+        (the paper's "NA"); ``success`` is False exactly then.
+    message : str
+    nit : int
+        Always 0 (no iterations).
+    wall_time : float
     neighbour : int array, shape (n,), or None
         Index of the donor row of each row (a fully observed row is its own donor); None when not
         available.
@@ -35,8 +46,6 @@ class NearestNeighbourResult:
         Number of fully observed rows (candidate donors).
     """
 
-    available: bool
-    X: np.ndarray | None
     neighbour: np.ndarray | None
     n_complete_rows: int
 
@@ -54,7 +63,7 @@ def nearest_neighbour_impute(W, mask) -> NearestNeighbourResult:
     Returns
     -------
     NearestNeighbourResult
-        ``available=False`` (and ``X=None``) when no row of ``W`` is fully observed.
+        ``success=False`` (and ``x=None``) when no row of ``W`` is fully observed.
 
     Notes
     -----
@@ -67,10 +76,20 @@ def nearest_neighbour_impute(W, mask) -> NearestNeighbourResult:
     ValueError
         If the shapes disagree or an observed entry is not finite.
     """
-    W, mask = _check_masked_matrix(W, mask, require_observed_columns=False)
+    start = time.perf_counter()
+    W, mask = check_masked_matrix(W, mask, require_observed_columns=False)
     complete = np.flatnonzero(mask.all(axis=1))
     if complete.size == 0:
-        return NearestNeighbourResult(available=False, X=None, neighbour=None, n_complete_rows=0)
+        return NearestNeighbourResult(
+            x=None,
+            fun=float("nan"),
+            status=INACCURATE,
+            message="no fully observed row: 1-NN has no donor (the paper's NA)",
+            nit=0,
+            wall_time=time.perf_counter() - start,
+            neighbour=None,
+            n_complete_rows=0,
+        )
     C = W[complete]  # (c, d), fully observed donors
     M = mask.astype(np.float64)
     # sum_j m_ij (w_ij - c_kj)^2 = sum_j m_ij w_ij^2 - 2 (m o w)_i . c_k + m_i . (c_k o c_k);
@@ -79,4 +98,13 @@ def nearest_neighbour_impute(W, mask) -> NearestNeighbourResult:
     neighbour = complete[np.argmin(D, axis=1)]
     neighbour[complete] = complete
     X = np.where(mask, W, W[neighbour])
-    return NearestNeighbourResult(available=True, X=X, neighbour=neighbour, n_complete_rows=complete.size)
+    return NearestNeighbourResult(
+        x=X,
+        fun=float(np.sum(np.where(mask, W - W[neighbour], 0.0) ** 2)),
+        status=CONVERGED,
+        message=f"every row filled from the nearest of {complete.size} fully observed rows",
+        nit=0,
+        wall_time=time.perf_counter() - start,
+        neighbour=neighbour,
+        n_complete_rows=complete.size,
+    )

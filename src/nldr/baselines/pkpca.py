@@ -28,6 +28,7 @@ longer changes.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,44 +36,48 @@ from scipy.optimize import minimize
 
 from .._validation import as_float_matrix, check_count, check_positive
 from ..kernels import rbf_kernel_vjp, squared_distances
-from .mean import _check_masked_matrix, _mean_fill
+from ..result import SolverResult
+from ._lbfgs import outer_loop_outcome
+from ._masked import check_masked_matrix, mean_fill
 
 __all__ = ["PKPCAResult", "pkpca_impute", "pkpca_objective"]
 
 
-@dataclass(frozen=True)
-class PKPCAResult:
+@dataclass(kw_only=True, repr=False)
+class PKPCAResult(SolverResult):
     """Outcome of ``pkpca_impute``.
 
     Attributes
     ----------
-    X : array, shape (n, d)
-        Completed matrix (observed entries of W kept).
-    n_iter : int
+    x : array, shape (n, d)
+        Completed matrix in the units of W (observed entries of W kept).
+    fun : float
+        The objective minimised: the negative profile log-likelihood E (see ``pkpca_objective``) at
+        ``x`` with the last outer iteration's q (``objective_history[-1]``).
+    status : int
+        :data:`~nldr.result.CONVERGED` when the last inner solve converged and q did not change;
+        otherwise ``max_iter`` outer iterations ran, and the status is
+        :data:`~nldr.result.INACCURATE` if the last L-BFGS solve stopped because its line search
+        could not make progress, :data:`~nldr.result.MAX_ITER` if not.
+    message : str
+        Why it stopped, with the message of the last inner solve.
+    nit : int
         Outer iterations (choice of q followed by an inner L-BFGS solve).
-    converged : bool
-        True when the last inner solve converged and q did not change.
+    wall_time : float
     n_components : int
         Number of feature-space components q of the final model.
     n_components_history : tuple of int
         q used in every outer iteration.
-    objective : array, shape (n_iter + 1,)
-        Negative profile log-likelihood E (see ``pkpca_objective``) at the start and after every
-        outer iteration (with that iteration's q).
+    objective_history : array, shape (nit + 1,)
+        E at the start and after every outer iteration (with that iteration's q).
     n_inner_iter : int
         Total L-BFGS iterations.
-    message : str
-        Message of the last inner solve.
     """
 
-    X: np.ndarray
-    n_iter: int
-    converged: bool
     n_components: int
     n_components_history: tuple[int, ...]
-    objective: np.ndarray
+    objective_history: np.ndarray
     n_inner_iter: int
-    message: str
 
 
 def _objective(X: np.ndarray, gamma: float, q: int) -> tuple[float, np.ndarray]:
@@ -163,10 +168,11 @@ def pkpca_impute(
     Returns
     -------
     PKPCAResult
-        Starting from mean imputation; ``converged`` is False if ``max_iter`` outer iterations ran
+        Starting from mean imputation; ``success`` is False if ``max_iter`` outer iterations ran
         without q settling and the inner solve converging.
     """
-    W, mask = _check_masked_matrix(W, mask)
+    start = time.perf_counter()
+    W, mask = check_masked_matrix(W, mask)
     gamma = check_positive(gamma, "gamma")
     n = W.shape[0]
     if n < 3:
@@ -186,7 +192,7 @@ def pkpca_impute(
     check_count(inner_max_iter, "inner_max_iter")
     gtol = check_positive(gtol, "gtol")
 
-    X = _mean_fill(W, mask)
+    X = mean_fill(W, mask)
     missing = ~mask
 
     def choose_q() -> int:
@@ -206,6 +212,7 @@ def pkpca_impute(
     n_inner = 0
     converged = not missing.any()
     message = "no missing entries" if converged else ""
+    inner_status = 0
     n_iter = 0
     while not converged and n_iter < max_iter:
         n_iter += 1
@@ -220,17 +227,22 @@ def pkpca_impute(
         X[missing] = res.x
         n_inner += int(res.nit)
         message = str(res.message)
+        inner_status = int(res.status)
         objective.append(float(res.fun))
         qs.append(q)
         q = choose_q()
         converged = bool(res.success) and q == qs[-1]
+    status, message = outer_loop_outcome(converged, inner_status, n_iter, message)
     return PKPCAResult(
-        X=X,
-        n_iter=n_iter,
-        converged=converged,
+        x=X,
+        fun=float(objective[-1]),
+        status=status,
+        message=message,
+        nit=n_iter,
+        wall_time=time.perf_counter() - start,
         n_components=qs[-1] if qs else q,
         n_components_history=tuple(qs),
-        objective=np.asarray(objective),
+        objective_history=np.asarray(objective),
         n_inner_iter=n_inner,
-        message=message,
     )
+

@@ -19,54 +19,60 @@ sigma^2) never decreases, which the tests check.
 
 Two practical additions, both keeping that guarantee. (1) Over-relaxed EM (Salakhutdinov & Roweis
 2003): each update is stretched by a factor that grows while the likelihood keeps rising and drops
-back to the plain EM step (which never lowers it) otherwise; on oil flow it needs 5-20x fewer
-iterations. (2) A floor on sigma^2 (1e-6 times the mean variance of the mean-imputed data). With
-exactly low-rank data, or with many missing entries and a large q (oil flow at p = 0.5, q >= 7), the
+back to the plain EM step (which never lowers it) otherwise, so it needs fewer iterations than plain
+EM. (2) A floor on sigma^2 (1e-6 times the mean variance of the mean-imputed data). With exactly
+low-rank data, or with many missing entries and a large q (oil flow at p = 0.5, q >= 7), the
 likelihood grows without bound as sigma^2 -> 0; at the floor the iteration stays well defined but
-can creep slowly, in which case ``converged`` is False after ``max_iter``.
+can creep slowly, in which case ``success`` is False after ``max_iter``.
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from .._validation import check_count
-from .mean import _check_masked_matrix, _mean_fill
+from ..result import SolverResult, status_from
+from ._masked import check_masked_matrix, mean_fill
 
 _NOISE_FLOOR = 1e-6  # sigma^2 >= this times the mean column variance of the mean-imputed data
 _OVERRELAXATION_GROWTH = 1.1  # Salakhutdinov & Roweis's factor for the step multiplier
 __all__ = ["PPCAResult", "ppca_impute", "ppca_log_likelihood"]
 
 
-@dataclass(frozen=True)
-class PPCAResult:
+@dataclass(kw_only=True, repr=False)
+class PPCAResult(SolverResult):
     """Outcome of ``ppca_impute``.
 
     Attributes
     ----------
-    X : array, shape (n, d)
-        Completed matrix: observed entries of W, posterior means E[y_m | y_o] at the missing ones.
-    n_iter : int
+    x : array, shape (n, d)
+        Completed matrix in the units of W: observed entries of W, posterior means E[y_m | y_o] at
+        the missing ones.
+    fun : float
+        The objective EM minimises: minus the marginal log-likelihood of the observed entries under
+        the final model (``-log_likelihood_history[-1]``).
+    status : int
+        :data:`~nldr.result.CONVERGED` when the log-likelihood change per observed entry fell below
+        ``tol``, :data:`~nldr.result.MAX_ITER` when ``max_iter`` EM iterations ran first.
+    message : str
+    nit : int
         EM iterations (M-steps) run.
-    converged : bool
-        Whether the log-likelihood change per observed entry fell below ``tol`` before ``max_iter``.
+    wall_time : float
     mean : array, shape (d,)
     components : array, shape (d, q)
         The loading matrix W of the PPCA model (columns orthogonal only at the complete-data optimum).
     noise_variance : float
-    log_likelihood : array, shape (n_iter + 1,)
+    log_likelihood_history : array, shape (nit + 1,)
         Marginal log-likelihood of the observed entries before the first and after every M-step.
     """
 
-    X: np.ndarray
-    n_iter: int
-    converged: bool
     mean: np.ndarray
     components: np.ndarray
     noise_variance: float
-    log_likelihood: np.ndarray
+    log_likelihood_history: np.ndarray
 
 
 @dataclass
@@ -148,7 +154,7 @@ def ppca_log_likelihood(W, mask, mean, components, noise_variance) -> float:
     float
         sum over rows of log N(y_o; mean_o, W_o W_o^T + noise_variance I).
     """
-    W, mask = _check_masked_matrix(W, mask, require_observed_columns=False)
+    W, mask = check_masked_matrix(W, mask, require_observed_columns=False)
     mean = np.asarray(mean, dtype=np.float64)
     components = np.asarray(components, dtype=np.float64)
     if mean.shape != (W.shape[1],):
@@ -187,14 +193,15 @@ def ppca_impute(
     Returns
     -------
     PPCAResult
-        ``X`` keeps the observed entries and fills the missing ones with their posterior means.
+        ``x`` keeps the observed entries and fills the missing ones with their posterior means.
 
     Notes
     -----
     Initialised from the complete-data PPCA solution on the mean-imputed matrix. The noise variance
     is kept above ``1e-6`` times the mean initial variance (see the module notes).
     """
-    W, mask = _check_masked_matrix(W, mask)
+    start = time.perf_counter()
+    W, mask = check_masked_matrix(W, mask)
     n, d = W.shape
     if isinstance(n_components, bool) or not isinstance(n_components, int | np.integer):
         raise ValueError(f"n_components must be an integer; got {n_components!r}")
@@ -206,7 +213,7 @@ def ppca_impute(
     q = int(n_components)
     n_observed = int(mask.sum())
 
-    X0 = _mean_fill(W, mask)
+    X0 = mean_fill(W, mask)
     mu, C, s2 = _pca_init(X0, q)
     s2_floor = _NOISE_FLOOR * max(float(np.mean(X0.var(axis=0))), np.finfo(float).tiny)
     s2 = max(s2, s2_floor)
@@ -236,12 +243,19 @@ def ppca_impute(
         if abs(history[-1] - history[-2]) <= tol * n_observed:
             converged = True
             break
+    if converged:
+        message = f"log-likelihood change per observed entry below tol after {n_iter} EM iterations"
+    else:
+        message = f"max_iter={max_iter} EM iterations reached before the log-likelihood settled"
     return PPCAResult(
-        X=post.Y,
-        n_iter=n_iter,
-        converged=converged,
+        x=post.Y,
+        fun=-float(history[-1]),
+        status=status_from(converged),
+        message=message,
+        nit=n_iter,
+        wall_time=time.perf_counter() - start,
         mean=mu,
         components=C,
         noise_variance=s2,
-        log_likelihood=np.asarray(history),
+        log_likelihood_history=np.asarray(history),
     )

@@ -25,6 +25,7 @@ dE/dY = -2 gamma (diag(M 1) Y - M X), two matrix products and no loop over point
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,7 +33,9 @@ from scipy.optimize import minimize
 
 from .._validation import as_float_matrix, check_count, check_positive
 from ..kernels import center_kernel, squared_distances
-from .mean import _check_masked_matrix, _mean_fill
+from ..result import SolverResult
+from ._lbfgs import outer_loop_outcome
+from ._masked import check_masked_matrix, mean_fill
 
 __all__ = ["KernelSubspace", "RKPCAResult", "fit_kernel_subspace", "rkpca_energy", "rkpca_impute"]
 
@@ -182,7 +185,7 @@ def rkpca_energy(Y, W, mask, subspace: KernelSubspace, weight: float) -> tuple[f
     gradient : array, shape (m, d)
     """
     Y = as_float_matrix(Y, "Y")
-    W, mask = _check_masked_matrix(W, mask, require_observed_columns=False)
+    W, mask = check_masked_matrix(W, mask, require_observed_columns=False)
     if W.shape != Y.shape:
         raise ValueError(f"W must have the shape of Y; got W {W.shape} and Y {Y.shape}")
     if Y.shape[1] != subspace.X_fit.shape[1]:
@@ -201,43 +204,47 @@ def _check_weight(weight) -> float:
     return w
 
 
-@dataclass(frozen=True)
-class RKPCAResult:
+@dataclass(kw_only=True, repr=False)
+class RKPCAResult(SolverResult):
     """Outcome of ``rkpca_impute``.
 
     Attributes
     ----------
-    X : array, shape (n, d)
-        Completed matrix: observed entries of W, RKPCA estimates at the missing ones.
-    Y : array, shape (n, d)
-        The energy minimiser itself; equals ``X`` when ``weight`` is inf, otherwise its observed
-        entries are pulled towards the subspace (denoised) too.
-    n_iter : int
+    x : array, shape (n, d)
+        Completed matrix in the units of W: observed entries of W, RKPCA estimates at the missing
+        ones.
+    fun : float
+        The energy minimised (summed over samples, the subspace refitted to them) at the end of the
+        last outer iteration (``energy_history[-1]``).
+    status : int
+        :data:`~nldr.result.CONVERGED` when the last inner solve converged and q (if chosen by trace
+        fraction) did not change; otherwise ``max_iter`` outer iterations ran, and the status is
+        :data:`~nldr.result.INACCURATE` if the last L-BFGS solve stopped because its line search
+        could not make progress, :data:`~nldr.result.MAX_ITER` if not.
+    message : str
+        Why it stopped, with the message of the last inner solve.
+    nit : int
         Outer iterations (choice of q followed by an inner L-BFGS solve); 1 when q is fixed.
-    converged : bool
-        True when the last inner solve converged and q (if chosen by trace fraction) did not change.
+    wall_time : float
+    Y : array, shape (n, d)
+        The energy minimiser itself; equals ``x`` when ``weight`` is inf, otherwise its observed
+        entries are pulled towards the subspace (denoised) too.
     n_components : int
         q of the final KPCA subspace.
     n_components_history : tuple of int
         q used in every outer iteration.
-    energy : array, shape (n_iter + 1,)
+    energy_history : array, shape (nit + 1,)
         Summed energy at the start and after every outer iteration, the subspace refitted to the
         current samples (so the projection part is the sum of the discarded centred eigenvalues).
     n_inner_iter : int
         Total L-BFGS iterations.
-    message : str
-        Message of the last inner solve.
     """
 
-    X: np.ndarray
     Y: np.ndarray
-    n_iter: int
-    converged: bool
     n_components: int
     n_components_history: tuple[int, ...]
-    energy: np.ndarray
+    energy_history: np.ndarray
     n_inner_iter: int
-    message: str
 
 
 def rkpca_impute(
@@ -289,7 +296,8 @@ def rkpca_impute(
     are exactly the stationary points of F, reached in one quasi-Newton solve instead of many slow
     outer sweeps; F is also the sum of the discarded eigenvalues of the centred kernel.
     """
-    W, mask = _check_masked_matrix(W, mask)
+    start = time.perf_counter()
+    W, mask = check_masked_matrix(W, mask)
     gamma = check_positive(gamma, "gamma")
     n = W.shape[0]
     if n < 3:
@@ -300,7 +308,7 @@ def rkpca_impute(
     check_count(inner_max_iter, "inner_max_iter")
     gtol = check_positive(gtol, "gtol")
 
-    Y = _mean_fill(W, mask)
+    Y = mean_fill(W, mask)
     missing = ~mask
     free = missing if not np.isfinite(weight) else np.ones_like(mask)
 
@@ -318,6 +326,7 @@ def rkpca_impute(
     n_inner = 0
     converged = not missing.any() and np.isinf(weight)
     message = "no missing entries" if converged else ""
+    inner_status = 0
     n_iter = 0
     while not converged and n_iter < max_iter:
         n_iter += 1
@@ -332,18 +341,22 @@ def rkpca_impute(
         Y[free] = res.x
         n_inner += int(res.nit)
         message = str(res.message)
+        inner_status = int(res.status)
         energy.append(float(res.fun))
         qs.append(q)
         q = fit(n_components).n_components
         converged = bool(res.success) and q == qs[-1]
+    status, message = outer_loop_outcome(converged, inner_status, n_iter, message)
     return RKPCAResult(
-        X=np.where(mask, W, Y),
+        x=np.where(mask, W, Y),
+        fun=float(energy[-1]),
+        status=status,
+        message=message,
+        nit=n_iter,
+        wall_time=time.perf_counter() - start,
         Y=Y,
-        n_iter=n_iter,
-        converged=converged,
         n_components=qs[-1] if qs else q,
         n_components_history=tuple(qs),
-        energy=np.asarray(energy),
+        energy_history=np.asarray(energy),
         n_inner_iter=n_inner,
-        message=message,
     )

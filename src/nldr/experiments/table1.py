@@ -19,7 +19,7 @@ from .._validation import as_float_matrix, check_positive
 from ..datasets import load_oil
 from ..kernels import center_cross_kernel, center_kernel, rbf_kernel
 from ..plotting import figure3
-from ..robust_kpca import _shrink
+from ..robust_kpca import RobustKernelPCA, shrink_eigenvalues
 from .base import Experiment, Job, JobOutput, summary_stats
 
 __all__ = ["spectral_kernel_errors", "run_noise_level", "summarise", "figure3_curves", "Table1"]
@@ -119,7 +119,7 @@ def run_noise_level(
 
     ranks = np.arange(1, max_rank + 1)
     kpca_spectra = np.where(np.arange(n)[None, :] < ranks[:, None], np.maximum(lam, 0.0)[None, :], 0.0)
-    cfs_l = np.stack([_shrink(lam, tau, 1.0) for tau in taus])
+    cfs_l = np.stack([shrink_eigenvalues(lam, tau, 1.0) for tau in taus])
     kpca_err = spectral_kernel_errors(U, K_gt, kpca_spectra)
     cfs_err = spectral_kernel_errors(U, K_gt, cfs_l**2)
 
@@ -135,15 +135,16 @@ def run_noise_level(
     out["best"] = False
     out["classification_error"] = np.nan
 
-    # Coordinates on each manifold: training points U_k diag(s), test points K_test U_k diag(s / lam)
-    # (KPCA: s = sqrt(lam); closed form: s = l, the same shrinkage the fit applied).
+    # Coordinates on each manifold. KPCA: training points U_k diag(sqrt(lam)), test points
+    # K_test U_k diag(1 / sqrt(lam)). Closed form: the RobustKernelPCA estimator at the best tau, whose
+    # full decomposition is this function's (training U_k diag(l), test K_test U_k diag(l / lam)).
     k = int(ranks[np.argmin(kpca_err)])
     s = np.sqrt(lam[:k])
     kpca_cls = _nn_error(U[:, :k] * s, y_train, K_test @ U[:, :k] * (s / lam[:k]), y_test)
-    best_tau = int(np.argmin(cfs_err))
-    l = cfs_l[best_tau]
-    k = int(np.count_nonzero(l))
-    cfs_cls = _nn_error(U[:, :k] * l[:k], y_train, K_test @ U[:, :k] * (l[:k] / lam[:k]), y_test)
+    best_tau = float(taus[int(np.argmin(cfs_err))])
+    robust = RobustKernelPCA(gamma=gamma, tau=best_tau, rho=1.0, center=center, eigensolver="full")
+    train_coords = robust.fit_transform(X_noisy)
+    cfs_cls = _nn_error(train_coords, y_train, robust.transform(X_test), y_test)
     for method, errors, cls in (("KPCA", kpca_err, kpca_cls), ("CFS", cfs_err, cfs_cls)):
         idx = out.index[out["method"] == method][int(np.argmin(errors))]
         out.loc[idx, ["best", "classification_error"]] = [True, cls]

@@ -45,7 +45,7 @@ def random_mask(shape: tuple[int, int], p: float, seed: int) -> np.ndarray:
 def _ours(W, mask, params):
     S0 = mean_impute(W, mask)
     res = minimize_regularized(MaskedLeastSquares(W, mask), S0, **params)
-    return res.S, res.converged, res.n_inner
+    return res.x, res.success, res.nit
 
 
 def _mean(W, mask, params):
@@ -54,22 +54,22 @@ def _mean(W, mask, params):
 
 def _nn(W, mask, params):
     res = nearest_neighbour_impute(W, mask)
-    return res.X, True, 0
+    return res.x, True, 0
 
 
 def _ppca(W, mask, params):
     res = ppca_impute(W, mask, **params)
-    return res.X, res.converged, res.n_iter
+    return res.x, res.success, res.nit
 
 
 def _pkpca(W, mask, params):
     res = pkpca_impute(W, mask, **params)
-    return res.X, res.converged, res.n_iter
+    return res.x, res.success, res.nit
 
 
 def _rkpca(W, mask, params):
     res = rkpca_impute(W, mask, **params)
-    return res.X, res.converged, res.n_iter
+    return res.x, res.success, res.nit
 
 
 _RUNNERS: dict[str, Callable] = {

@@ -136,7 +136,6 @@ def run_sequence(
     rho_growth: float = 10.0,
     rho_max: float = 10.0,
     center: bool = False,
-    method: str = "reduced",
     max_inner: int | None = None,
     tnh_options: Mapping | None = None,
     progress: Callable[[str], None] | None = None,
@@ -162,8 +161,6 @@ def run_sequence(
         x10) are the ones measured in docs/REPRODUCTION.md#table-3-solver.
     center : bool, default False
         Double-centre the kernel.
-    method : {"reduced", "alternation"}, default "reduced"
-        Inner solver of the regularizer.
     max_inner : int, optional
         Per-stage iteration limit of the regularizer (its default when None).
     tnh_options : mapping, optional
@@ -203,7 +200,6 @@ def run_sequence(
     regularizer_options = dict(
         tau=check_positive(tau, "tau"),
         center=bool(center),
-        method=method,
         rho0=rho0,
         rho_growth=rho_growth,
         rho_max=rho_max,
@@ -265,7 +261,7 @@ def run_sequence(
     else:
         solved = [_kernel_solve(job) for job in jobs]
     for width, (gamma, res, wall, cpu) in zip(widths, solved, strict=True):
-        record(f"Kernel {width}", res.S, gamma, wall, cpu, res.converged, res.n_inner, res.message, res)
+        record(f"Kernel {width}", res.x, gamma, wall, cpu, res.success, res.nit, res.message, res)
 
     return Table3Run(
         rows=pd.DataFrame(rows, columns=_ROW_COLUMNS),

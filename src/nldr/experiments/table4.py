@@ -210,8 +210,8 @@ def run_sequence(
                 rho_max=rho_max,
                 **options,
             )
-            state["X"] = res.S
-            return res.S
+            state["X"] = res.x
+            return res.x
 
         start = time.perf_counter()
         alt = refine_cameras_and_shapes(
