@@ -30,7 +30,7 @@ from threadpoolctl import threadpool_limits
 
 from .._validation import check_count, check_positive
 from ..kernels import d_max_width, d_med_width
-from ..nrsfm import OrthographicReprojection, TraceNormHeuristic, e3d, random_visibility_mask, stack_to_rows
+from ..nrsfm import OrthographicReprojection, e3d, random_visibility_mask, stack_to_rows, trace_norm_heuristic
 from ..regularizer import minimize_regularized
 
 __all__ = ["METHODS", "WIDTHS", "SEQUENCES", "Table3Run", "setting_label", "run_sequence", "summarise"]
@@ -175,7 +175,8 @@ def run_sequence(
         Per-stage iteration limit of the regularizer (its default when None).
     tnh_options : mapping, optional
         ``solver`` (default "SCS"), ``eps`` (SCS's eps_abs = eps_rel) and further solver options for
-        :meth:`~nldr.nrsfm.TraceNormHeuristic.solve`; unset keys take the library's defaults.
+        :func:`~nldr.nrsfm.trace_norm_heuristic` (``ADMM``: its options; else a cvxpy conic solver
+        and its ``solver_options``); unset keys take the library's defaults.
     progress : callable, optional
         Receives one line per finished method.
     n_jobs : int, default 1
@@ -252,20 +253,25 @@ def run_sequence(
             )
 
     wall0, cpu0 = time.perf_counter(), time.process_time()
-    tnh = TraceNormHeuristic(W2d, seq.R, mask).solve(None, solver=solver, solver_options=solver_options)
+    if solver == "ADMM":
+        tnh = trace_norm_heuristic(W2d, seq.R, mask, method="admm", **solver_options)
+    else:  # a cvxpy conic solver
+        tnh = trace_norm_heuristic(
+            W2d, seq.R, mask, method="cvxpy", solver=solver, solver_options=solver_options
+        )
     record(
         "TNH",
-        tnh.X,
+        tnh.x,
         np.nan,
         time.perf_counter() - wall0,
         time.process_time() - cpu0,
         tnh.success,
-        tnh.n_iter or 0,
-        f"{tnh.solver} exact fit: {tnh.status}",
+        tnh.nit,
+        f"{tnh.solver} exact fit: {tnh.message}",
         tnh,
     )
 
-    jobs = [(data_term, tnh.X, WIDTHS[width](tnh.X), regularizer_options) for width in widths]
+    jobs = [(data_term, tnh.x, WIDTHS[width](tnh.x), regularizer_options) for width in widths]
     if n_jobs > 1 and len(jobs) > 1:
         with ProcessPoolExecutor(max_workers=min(n_jobs, len(jobs))) as pool:
             solved = list(pool.map(_kernel_solve_in_worker, jobs))
