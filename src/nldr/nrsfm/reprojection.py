@@ -3,6 +3,11 @@
 f(X) = sum_{f,j} Z_fj ||w_f(x_j) - R_f s_f(x_j)||^2 with shapes as rows X (F, 3P), image tracks as
 rows W (F, 2P), cameras R (F, 2, 3) and the visibility mask Z (F, P); see :mod:`nldr.nrsfm.layout`
 and the data-term protocol in :mod:`nldr.data_terms`.
+
+Also the pieces the other NRSfM modules share: the input checks (:func:`check_cameras`,
+:func:`check_visibility_mask`, :func:`check_tracks`, :func:`check_shapes`) and the batched per-frame
+residual (:func:`visibility_weights`, :func:`masked_residual`) of the first-order TNH, the camera LM
+and the camera/shape alternation.
 """
 
 from __future__ import annotations

@@ -62,9 +62,10 @@ def tnh_with_camera_refinement(
     """TNH with the cameras refined in alternation, from R0 to convergence of the joint energy.
 
     Outer iteration: the shapes minimise tau ||X||_* + reprojection error at the current cameras
-    (FISTA, warm-started from the previous shapes), then Levenberg-Marquardt refines every camera's
-    quaternion with the shapes fixed (:func:`~nldr.nrsfm.camera_refinement.refine_cameras_and_shapes`). Stops
-    when the joint energy fell by less than ``tol`` (relative) over the last ``window`` iterations.
+    (:func:`~nldr.nrsfm.fista.fista_tnh`, warm-started from the previous shapes), then
+    Levenberg-Marquardt refines every camera's quaternion with the shapes fixed
+    (:func:`~nldr.nrsfm.camera_refinement.refine_cameras_and_shapes`). Stops when the joint energy
+    fell by less than ``tol`` (relative) over the last ``window`` iterations.
 
     The shape step is solved only as accurately as the alternation needs: its FISTA tolerance (relative
     objective decrease per iteration) is ``shape_tol_ratio`` times the relative decrease of the joint
