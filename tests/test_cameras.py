@@ -678,3 +678,37 @@ def test_tune_tau_validates():
         tune_tau(lambda t: t, log10_bounds=(2, 1))
     with pytest.raises(ValueError, match="finite"):
         tune_tau(lambda t: np.nan)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# one result convention
+
+
+def test_every_nrsfm_solver_result_is_a_solver_result():
+    """x, fun, status, message, nit and wall_time everywhere; success means status CONVERGED; the repr
+    is one line."""
+    from nldr.nrsfm import trace_norm_heuristic
+    from nldr.nrsfm.fista import fista_tnh
+    from nldr.result import STATUS_NAMES, SolverResult
+
+    W, R_true, X = deforming_scene(n_frames=8, n_points=9, seed=41)
+    F, P = X.shape[0], X.shape[1] // 3
+    R0 = perturb_cameras(R_true, 5.0, np.random.default_rng(41))
+    W3 = W.reshape(F, 2, P)
+    results = [
+        trace_norm_heuristic(W, R_true),
+        trace_norm_heuristic(W, R_true, tau=1.0, method="fista"),
+        fista_tnh(W3, None, R_true, np.zeros((F, 3, P)), 0.0, 1.0, 50, 1e-10),
+        rigid_factorization(W),
+        refine_cameras(W, None, R0, X),
+        refine_cameras_and_shapes(W, None, R0, rigid_shape_step(W), max_outer=3),
+        tnh_with_camera_refinement(W, None, R0, 1.0, max_outer=3),
+        tune_tau(lambda tau: (np.log10(tau) - 0.5) ** 2, xatol=0.1),
+    ]
+    for res in results:
+        assert isinstance(res, SolverResult)
+        assert res.success == (res.status == CONVERGED) and res.status in STATUS_NAMES
+        assert isinstance(res.nit, int) and res.nit >= 0 and res.wall_time >= 0
+        assert np.isfinite(res.fun) and res.message
+        text = repr(res)
+        assert "\n" not in text and text.startswith(type(res).__name__) and f"nit={res.nit}" in text

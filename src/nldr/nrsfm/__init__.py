@@ -5,10 +5,11 @@ Known cameras (Table 3): :func:`trace_norm_heuristic` is the one entry point of 
 heuristic, eq. 12), exact-fit by ADMM (default), penalised by FISTA, or through cvxpy (optional
 dependency) as the reference; it returns a :class:`TNHResult`.
 
-Unknown cameras (Table 4): :func:`initialize_cameras` (rigid factorisation, :mod:`.factorization`),
-:func:`tnh_with_camera_refinement` and :func:`tune_tau` (:mod:`.unknown_cameras`) on top of the camera
-LM and the shape/camera alternation (:mod:`.camera_refinement`, :mod:`.rotations`); evaluation up to
-the global gauge by :func:`e3d` (``align=True``) and :func:`camera_error`.
+Unknown cameras (Table 4): :func:`initialize_cameras` (rigid factorisation,
+:mod:`nldr.nrsfm.factorization`), :func:`tnh_with_camera_refinement` and :func:`tune_tau`
+(:mod:`nldr.nrsfm.unknown_cameras`) on top of the camera LM and the shape/camera alternation
+(:mod:`nldr.nrsfm.camera_refinement`, :mod:`nldr.nrsfm.rotations`); evaluation up to the global gauge
+by :func:`e3d` (``align=True``) and :func:`camera_error`.
 
 Shapes are samples as rows, X (F, 3P); image tracks W (F, 2P); cameras R (F, 2, 3); visibility
 masks (F, P). See :mod:`nldr.nrsfm.layout` for conversions from the benchmark's stacked matrices.
