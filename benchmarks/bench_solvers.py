@@ -29,9 +29,9 @@ from threadpoolctl import threadpool_limits
 from nldr.baselines import mean_impute
 from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import load_mocap, load_oil
-from nldr.experiments.table2 import random_mask
 from nldr.experiments.mocap import WIDTHS
-from nldr.nrsfm import OrthographicReprojection, TraceNormHeuristic
+from nldr.experiments.table2 import random_mask
+from nldr.nrsfm import OrthographicReprojection, trace_norm_heuristic
 from nldr.nrsfm.layout import stack_to_rows
 from nldr.reference.regularizer import pre_image_step
 from nldr.regularizer import minimize_regularized, optimal_kernel_factor, reduced_energy
@@ -78,7 +78,7 @@ def pickup_problem(data_dir):
     """Table 3's kernel problem on pickup (every 10th frame, full data): data term, TNH start, d_med gamma."""
     seq = load_mocap("pickup", data_dir).subsample(10)
     W2d = stack_to_rows(seq.W, dim=2)
-    X0 = TraceNormHeuristic(W2d, seq.R).solve().X
+    X0 = trace_norm_heuristic(W2d, seq.R, method="cvxpy").x
     return OrthographicReprojection(W2d, seq.R), X0, WIDTHS["d_med"](X0)
 
 

@@ -2,7 +2,7 @@
 
 Each case runs :func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement` once, as the tau search
 of :func:`~nldr.experiments.table4.run_sequence` does for every tau it tries: CMU mocap, every 10th
-frame, 41 points, cameras from :func:`~nldr.nrsfm.cameras.initialize_cameras`, full data or 50 % of
+frame, 41 points, cameras from :func:`~nldr.nrsfm.factorization.initialize_cameras`, full data or 50 % of
 the (frame, point) observations hidden (``random_visibility_mask(F, P, 0.5, 2016)``), default
 tolerances (joint energy, 1e-8 over 10 outer iterations); e3D after one global orthogonal alignment.
 
@@ -10,7 +10,7 @@ tolerances (joint energy, 1e-8 over 10 outer iterations); e3D after one global o
 full SVD per thresholding, the camera LM on the explicit Jacobian), timed on this machine (2 shared
 cores, BLAS on 1 thread, other jobs running: timings vary by up to 50 % from run to run) and stored
 in :data:`BEFORE`. ``--reference`` also reruns
-:func:`~nldr.nrsfm.unknown_cameras._tnh_with_camera_refinement_reference` (the fixed-tolerance,
+:func:`~nldr.reference.nrsfm.tnh_with_camera_refinement_reference` (the fixed-tolerance,
 full-SVD alternation on today's camera LM) next to the new code, under the same load.
 
 The two implementations stop at slightly different points on the way to the same fixed point (and at
@@ -20,7 +20,7 @@ is 7e-5 away from a run with tol = 1e-13. ``--check`` fails if any e3D moves by 
 
 Usage (from the repository root)::
 
-    .venv/bin/python benchmarks/bench_table4.py                      # all 32 cases, about 70 s
+    .venv/bin/python benchmarks/bench_table4.py                      # all 32 cases
     .venv/bin/python benchmarks/bench_table4.py --sequences pickup yoga --taus 0.3 1 10 --settings full
     .venv/bin/python benchmarks/bench_table4.py --reference          # also time the reference live
     .venv/bin/python benchmarks/bench_table4.py --run-sequence       # also one whole run_sequence (pickup)
@@ -40,10 +40,11 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_mocap
-from nldr.nrsfm.cameras import initialize_cameras
+from nldr.nrsfm.factorization import initialize_cameras
 from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
 from nldr.nrsfm.metrics import e3d
-from nldr.nrsfm.unknown_cameras import _tnh_with_camera_refinement_reference, tnh_with_camera_refinement
+from nldr.nrsfm.unknown_cameras import tnh_with_camera_refinement
+from nldr.reference.nrsfm import tnh_with_camera_refinement_reference
 
 OUT = Path("results/benchmarks/table4_tnh.csv")
 
@@ -102,16 +103,16 @@ def run_case(seq, setting, tau, reference):
     res, seconds = timed(lambda: tnh_with_camera_refinement(W2d, mask, R0, tau))
     row = {
         "after_seconds": seconds,
-        "after_n_outer": res.n_outer,
-        "after_e3d": e3d(res.X, X_gt, P, align=True),
-        "after_converged": res.converged,
+        "after_n_outer": res.nit,
+        "after_e3d": e3d(res.x, X_gt, P, align=True),
+        "after_converged": res.success,
     }
     if reference:
-        ref, seconds = timed(lambda: _tnh_with_camera_refinement_reference(W2d, mask, R0, tau))
+        ref, seconds = timed(lambda: tnh_with_camera_refinement_reference(W2d, mask, R0, tau))
         row.update(
             reference_seconds=seconds,
-            reference_n_outer=ref.n_outer,
-            reference_e3d=e3d(ref.X, X_gt, P, align=True),
+            reference_n_outer=ref.nit,
+            reference_e3d=e3d(ref.x, X_gt, P, align=True),
         )
     return row
 

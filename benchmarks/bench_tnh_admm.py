@@ -1,17 +1,19 @@
 """Benchmark: exact-fit TNH by ADMM (nldr.nrsfm.admm) against SCS, subsampled and full-length sequences.
 
+Both through ``nldr.nrsfm.trace_norm_heuristic``: ``method="admm"`` and ``method="cvxpy"`` (SCS).
+
 For each CMU mocap sequence (drink, pickup, yoga, stretch), ground-truth cameras, original units:
 
 - every 10th frame (the paper's Table 3 protocol), full data and 50% of the (frame, point)
   observations removed (``random_visibility_mask``, seed 2016, as in results/runs/table3): ADMM
-  time, iterations and e3D, against SCS (tnh.py's default, eps 1e-6) time and e3D;
+  time, iterations and e3D, against SCS (the cvxpy backend's default, eps 1e-6) time and e3D;
 - every frame (drink 1102 frames, pickup 357, yoga 307, stretch 370), full data and 50% missing:
   ADMM only (SCS cannot handle these sizes).
 
 SCS numbers are taken from results/runs/table3/<sequence>_{full,missing}_seed2016.{csv,npz} when those
 files exist and hold the same mask (e3D and ||X||_* are recomputed from the stored TNH shapes; time and
 iterations are the pipeline's, measured under whatever load the machine had then). Otherwise, or
-with ``--rerun-scs``, SCS is run here; drink with full data takes ~4.5 minutes (table3: 269 s wall),
+with ``--rerun-scs``, SCS is run here; drink with full data is by far the slowest SCS solve,
 ``--skip-slow-scs`` skips it.
 
 Usage (from the repository root; one BLAS thread by default, the machine is shared)::
@@ -35,10 +37,10 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_mocap
-from nldr.nrsfm.admm import tnh_admm
+from nldr.nrsfm import trace_norm_heuristic
 from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
 from nldr.nrsfm.metrics import e3d
-from nldr.nrsfm.tnh import TraceNormHeuristic
+from nldr.result import STATUS_NAMES
 
 REPO = Path(__file__).resolve().parents[1]
 SEQUENCES = ("drink", "pickup", "yoga", "stretch")
@@ -98,12 +100,12 @@ def stored_scs(name: str, setting: str, mask: np.ndarray, X_gt: np.ndarray, P: i
 
 def run_scs(W2d, R, mask, X_gt, P):
     start = time.perf_counter()
-    res = TraceNormHeuristic(W2d, R, mask).solve(solver="SCS")
+    res = trace_norm_heuristic(W2d, R, mask, method="cvxpy", solver="SCS")
     return {
-        "scs_source": f"run here ({res.status})",
+        "scs_source": f"run here ({res.message})",
         "scs_time": time.perf_counter() - start,
-        "scs_iter": res.n_iter,
-        "scs_e3d": e3d(res.X, X_gt, P),
+        "scs_iter": res.nit,
+        "scs_e3d": e3d(res.x, X_gt, P),
         "scs_nuclear_norm": res.nuclear_norm,
     }
 
@@ -114,7 +116,7 @@ def main(argv=None):
     )
     parser.add_argument("--sequences", nargs="+", default=list(SEQUENCES))
     parser.add_argument("--steps", nargs="+", type=int, default=[10, 1], help="frame subsampling steps")
-    parser.add_argument("--tol", type=float, default=None, help="ADMM tolerance (default: tnh_admm's)")
+    parser.add_argument("--tol", type=float, default=None, help="ADMM tolerance (default: solve_admm's)")
     parser.add_argument("--max-iter", type=int, default=None, help="ADMM iteration cap")
     parser.add_argument("--rerun-scs", action="store_true", help="run SCS instead of reusing table3 runs")
     parser.add_argument("--skip-slow-scs", action="store_true", help="never run SCS on drink full")
@@ -149,7 +151,7 @@ def main(argv=None):
                     )
                     with warnings.catch_warnings(record=True) as caught:
                         warnings.simplefilter("always", RuntimeWarning)
-                        res = tnh_admm(W2d, seq.R, mask, **admm_options)
+                        res = trace_norm_heuristic(W2d, seq.R, mask, method="admm", **admm_options)
                     for w in caught:
                         print(f"  warning: {w.message}", flush=True)
                     row = {
@@ -157,10 +159,10 @@ def main(argv=None):
                         "step": step,
                         "n_frames": F,
                         "setting": setting,
-                        "admm_time": res.solve_time,
-                        "admm_iter": res.n_iter,
-                        "admm_status": res.status,
-                        "admm_e3d": e3d(res.X, X_gt, P),
+                        "admm_time": res.wall_time,
+                        "admm_iter": res.nit,
+                        "admm_status": STATUS_NAMES[res.status],
+                        "admm_e3d": e3d(res.x, X_gt, P),
                         "admm_nuclear_norm": res.nuclear_norm,
                         "admm_duality_gap": res.duality_gap,
                         "admm_max_abs_residual": res.max_abs_residual,
@@ -190,7 +192,7 @@ def main(argv=None):
                     print(
                         f"{name:8} {step:>4} {F:>5} {setting:8} {row['admm_time']:8.2f} "
                         f"{row['admm_iter']:>6} {row['admm_e3d']:9.5f} {scs_time} {scs_e3d} {diff}  {rel}"
-                        + ("" if res.status == "optimal" else f"  [{res.status}]"),
+                        + ("" if res.success else f"  [{STATUS_NAMES[res.status]}]"),
                         flush=True,
                     )
     out = Path(args.csv)

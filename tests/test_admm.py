@@ -1,4 +1,5 @@
-"""Exact-fit TNH by ADMM (nldr.nrsfm.admm): agreement with cvxpy, optimality certificate, real data."""
+"""Exact-fit TNH by ADMM (trace_norm_heuristic, method="admm"): agreement with cvxpy, optimality
+certificate, real data."""
 
 from __future__ import annotations
 
@@ -8,12 +9,14 @@ import numpy as np
 import pytest
 from conftest import nuclear_norm, project, synthetic_sequence
 
-from nldr.nrsfm import TraceNormHeuristic, tnh_admm
+from nldr.nrsfm import trace_norm_heuristic
+from nldr.nrsfm.cvxpy_tnh import CvxpyTNH
 from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
 from nldr.nrsfm.metrics import e3d
 from nldr.nrsfm.reprojection import OrthographicReprojection
+from nldr.result import CONVERGED, MAX_ITER
 
-# Tolerance used for the synthetic problems. At status "optimal" the duality gap is <= TOL ||X||_*, so
+# Tolerance used for the synthetic problems. At status CONVERGED the duality gap is <= TOL ||X||_*, so
 # ||X||_* exceeds the optimum by at most TOL / (1 - TOL) relative; CLARABEL's own optimality is ~1e-8.
 TOL = 1e-7
 NUCLEAR_RTOL = 10 * TOL
@@ -21,6 +24,14 @@ NUCLEAR_RTOL = 10 * TOL
 # missing problem below X is off by 5e-5 relative (the optimum has singular values ~1e-5, so X is
 # loosely determined by ||X||_*); at 1e-10 it matches ADMM at TOL to ~3e-6 on these problems.
 CLARABEL_TIGHT = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10}
+
+
+def admm(W, R, mask=None, **options):
+    return trace_norm_heuristic(W, R, mask, method="admm", **options)
+
+
+def clarabel(W, R, mask=None, solver_options=None):
+    return trace_norm_heuristic(W, R, mask, method="cvxpy", solver="CLARABEL", solver_options=solver_options)
 
 
 def null_space_component(Y, R, mask):
@@ -45,24 +56,24 @@ def test_admm_matches_clarabel_exact_fit(missing):
     F, P = X.shape[0], X.shape[1] // 3
     mask = random_visibility_mask(F, P, missing, random_state=3)
     W = np.where(np.concatenate([mask, mask], axis=1), W, np.nan)  # unobserved entries may be NaN
-    res = tnh_admm(W, R, mask, tol=TOL, max_iter=100_000)
-    ref = TraceNormHeuristic(W, R, mask).solve(solver="CLARABEL", solver_options=CLARABEL_TIGHT)
-    assert ref.status == "optimal"
-    assert res.status == "optimal" and res.success
-    assert res.solver == "ADMM" and res.tau == 0.0 and res.exact_fit
-    assert res.X.shape == X.shape and res.n_iter > 0 and res.solve_time > 0
-    assert res.objective == res.nuclear_norm == pytest.approx(nuclear_norm(res.X), rel=1e-12)
+    res = admm(W, R, mask, tol=TOL, max_iter=100_000)
+    ref = clarabel(W, R, mask, solver_options=CLARABEL_TIGHT)
+    assert ref.status == CONVERGED and ref.success and ref.method == "cvxpy" and ref.solver == "CLARABEL"
+    assert res.status == CONVERGED and res.success and res.message.startswith("optimal")
+    assert res.method == "admm" and res.solver == "ADMM" and res.tau == 0.0 and res.exact_fit
+    assert res.x.shape == X.shape and res.nit > 0 and res.wall_time > 0 and res.solver_time is None
+    assert res.fun == res.nuclear_norm == pytest.approx(nuclear_norm(res.x), rel=1e-12)
     scale = np.nanmax(np.abs(W))
     # feasible by construction: the X-iterate reprojects exactly, to rounding
     assert res.max_abs_residual < 1e-9 * scale
     assert res.reprojection_error < (1e-9 * scale) ** 2 * W.size
-    np.testing.assert_allclose(OrthographicReprojection(W, R, mask).residuals(res.X), 0.0, atol=1e-9 * scale)
+    np.testing.assert_allclose(OrthographicReprojection(W, R, mask).residuals(res.x), 0.0, atol=1e-9 * scale)
     assert res.nuclear_norm == pytest.approx(ref.nuclear_norm, rel=NUCLEAR_RTOL)
     # the certified lower bound does not exceed the reference optimum
     assert res.nuclear_norm - res.duality_gap <= ref.nuclear_norm * (1 + 1e-8)
     assert 0 <= res.duality_gap <= TOL * res.nuclear_norm
     # and the solution is the same point
-    np.testing.assert_allclose(res.X, ref.X, atol=1e-5 * np.abs(ref.X).max())
+    np.testing.assert_allclose(res.x, ref.x, atol=1e-5 * np.abs(ref.x).max())
     # the ground truth is feasible: the minimum cannot exceed its nuclear norm
     assert res.nuclear_norm <= nuclear_norm(X) * (1 + 1e-12)
 
@@ -78,9 +89,9 @@ def test_admm_dual_is_an_optimality_certificate(missing):
     X_true, W, R = synthetic_sequence(n_frames=12, n_points=7, rank=2, seed=5)
     F, P = X_true.shape[0], X_true.shape[1] // 3
     mask = random_visibility_mask(F, P, missing, random_state=5)
-    res = tnh_admm(W, R, mask, tol=TOL, max_iter=100_000)
-    assert res.status == "optimal"
-    X, Y = res.X, res.dual
+    res = admm(W, R, mask, tol=TOL, max_iter=100_000)
+    assert res.status == CONVERGED
+    X, Y = res.x, res.dual
     assert Y.shape == X.shape
     nuclear = nuclear_norm(X)
     # (1) Y is a subgradient at X, to the stopping tolerance. Y is an exact subgradient at the
@@ -109,43 +120,39 @@ def test_admm_rank_deficient_camera_uses_the_pseudo_inverse():
     R = R.copy()
     R[2] = [[1.0, 0.0, 0.0], [2.0, 0.0, 0.0]]  # rank 1: sees only the x coordinate
     W = project(R, X)  # consistent tracks: an exact fit exists
-    res = tnh_admm(W, R, tol=TOL, max_iter=100_000)
-    ref = TraceNormHeuristic(W, R).solve(solver="CLARABEL")
-    assert res.status == "optimal"
+    res = admm(W, R, tol=TOL, max_iter=100_000)
+    ref = clarabel(W, R)
+    assert res.status == CONVERGED
     assert res.max_abs_residual < 1e-9 * np.abs(W).max()
     assert res.nuclear_norm == pytest.approx(ref.nuclear_norm, rel=NUCLEAR_RTOL)
     # an image point outside the camera's range cannot be fitted exactly: a clear error up front
     W_bad = W.copy()
     W_bad[2, 6 + 4] += 1.0  # y of point 4 in frame 2 (P = 6)
     with pytest.raises(ValueError, match="no exact fit exists: point 4 observed in frame 2"):
-        tnh_admm(W_bad, R)
+        admm(W_bad, R)
     # hiding that point makes the problem feasible again
     mask = np.ones((10, 6), dtype=bool)
     mask[2, 4] = False
-    assert tnh_admm(W_bad, R, mask).max_abs_residual < 1e-9 * np.abs(W).max()
+    assert admm(W_bad, R, mask).max_abs_residual < 1e-9 * np.abs(W).max()
 
 
-def test_admm_iteration_cap_warm_start_and_dispatch():
+def test_admm_iteration_cap_warm_start_and_method_spelling():
     X, W, R = synthetic_sequence(n_frames=10, n_points=6, seed=9)
-    with pytest.warns(RuntimeWarning, match="optimal_inaccurate"):
-        capped = tnh_admm(W, R, max_iter=5)
-    assert capped.status == "optimal_inaccurate" and not capped.success and capped.n_iter == 5
+    with pytest.warns(RuntimeWarning, match="tolerance 1e-06 not met"):
+        capped = admm(W, R, max_iter=5)
+    assert capped.status == MAX_ITER and not capped.success and capped.nit == 5
+    assert "max_iter=5" in capped.message
     assert capped.max_abs_residual < 1e-9 * np.abs(W).max()  # still feasible
-    cold = tnh_admm(W, R)
-    warm = tnh_admm(W, R, X0=cold.X, Y0=cold.dual, beta=cold.solver_options["final_beta"])
-    assert cold.status == warm.status == "optimal"
-    assert warm.n_iter <= 20 < cold.n_iter  # stops at the first or second check
+    cold = admm(W, R)
+    warm = admm(W, R, X0=cold.x, Y0=cold.dual, beta=cold.options["final_beta"])
+    assert cold.status == warm.status == CONVERGED
+    assert warm.nit <= 20 < cold.nit  # stops at the first or second check
     assert warm.nuclear_norm == pytest.approx(cold.nuclear_norm, rel=2e-6)
-    # through TraceNormHeuristic: same solver, options as keyword arguments, no cvxpy compilation
-    tnh = TraceNormHeuristic(W, R)
-    via = tnh.solve(None, solver="admm", solver_options={"tol": 1e-6, "max_iter": 50_000})
-    assert via.solver == "ADMM" and via.n_iter == cold.n_iter
-    np.testing.assert_array_equal(via.X, cold.X)
-    assert tnh._exact._cache.param_prog is None  # the cvxpy problem was never compiled
-    again = tnh.solve(0.0, solver="ADMM", warm_start=True)
-    assert again.n_iter <= 20 < via.n_iter  # X, multiplier and penalty of the previous solve
-    with pytest.warns(RuntimeWarning):
-        assert tnh.solve(solver="ADMM", solver_options={"max_iter": 3}).n_iter == 3
+    # the default method, spelled any case (the pipeline's config says "ADMM"), with explicit options
+    for method in ({}, {"method": "ADMM"}, {"method": "Admm"}):
+        via = trace_norm_heuristic(W, R, tau=0.0, tol=1e-6, max_iter=50_000, **method)
+        assert via.method == "admm" and via.nit == cold.nit
+        np.testing.assert_array_equal(via.x, cold.x)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -180,7 +187,7 @@ def test_admm_input_errors():
     ]
     for args, kwargs, match in cases:
         with pytest.raises(ValueError, match=match):
-            tnh_admm(*args, **kwargs)
+            admm(*args, **kwargs)
     # NaN at an unobserved entry is fine
     hidden = mask.copy()
     hidden[1, 2] = False
@@ -188,12 +195,11 @@ def test_admm_input_errors():
     W_nan[1, [2, 4 + 2]] = np.nan
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert tnh_admm(W_nan, R, hidden).status == "optimal"
-    tnh = TraceNormHeuristic(W, R)
+        assert admm(W_nan, R, hidden).status == CONVERGED
     with pytest.raises(ValueError, match="exact-fit form only"):
-        tnh.solve(0.1, solver="ADMM")
-    with pytest.raises(ValueError, match="unknown solver_options for ADMM"):
-        tnh.solve(solver="ADMM", solver_options={"eps_abs": 1e-6})
+        trace_norm_heuristic(W, R, tau=0.1, method="admm")
+    with pytest.raises(ValueError, match=r"unknown options for method 'admm': \['eps_abs'\]"):
+        trace_norm_heuristic(W, R, eps_abs=1e-6)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -209,11 +215,10 @@ def test_real_data_admm_matches_scs_pickup(data_dir, missing):
     F, P = seq.n_frames, seq.n_points
     W2d, X_gt = stack_to_rows(seq.W, 2), stack_to_rows(seq.S)
     mask = None if missing == 0 else random_visibility_mask(F, P, missing, random_state=2016)
-    tnh = TraceNormHeuristic(W2d, seq.R, mask)
-    admm = tnh.solve(solver="ADMM")
-    scs = tnh.solve(solver="SCS")
-    assert admm.status == "optimal" and admm.max_abs_residual < 1e-9 * np.abs(W2d).max()
-    e_admm, e_scs = e3d(admm.X, X_gt, P), e3d(scs.X, X_gt, P)
+    admm = trace_norm_heuristic(W2d, seq.R, mask)
+    scs = CvxpyTNH(W2d, seq.R, mask).solve(solver="SCS")
+    assert admm.status == CONVERGED and admm.max_abs_residual < 1e-9 * np.abs(W2d).max()
+    e_admm, e_scs = e3d(admm.x, X_gt, P), e3d(scs.x, X_gt, P)
     assert abs(e_admm - e_scs) < 1e-3
     if missing == 0:  # paper Table 3: 0.0487; SCS measures 0.0475 (tests/test_nrsfm.py)
         assert e_admm == pytest.approx(0.0475, abs=5e-4)

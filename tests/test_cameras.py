@@ -1,5 +1,6 @@
-"""Camera estimation for NRSfM (nldr.nrsfm.cameras): rigid factorisation, metric upgrade, quaternion LM,
-camera/shape alternation and evaluation up to the global orthogonal gauge.
+"""Camera estimation for NRSfM: rigid factorisation and metric upgrade (nldr.nrsfm.factorization),
+quaternions (nldr.nrsfm.rotations), camera LM and camera/shape alternation (nldr.nrsfm.camera_refinement)
+and evaluation up to the global orthogonal gauge (nldr.nrsfm.metrics).
 
 Tolerances. On noise-free data every estimate below is exact in exact arithmetic, so the bounds only have
 to absorb rounding (eps ~ 2.2e-16 times modest condition numbers) or the solvers' own stopping
@@ -15,24 +16,25 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from nldr.datasets import load_mocap
-from nldr.nrsfm.cameras import (
-    align_global,
-    camera_error,
-    camera_to_quaternion,
-    global_camera_alignment,
-    initialize_cameras,
-    metric_upgrade,
-    nearest_orthonormal_rows,
-    quaternion_to_camera,
+from nldr.nrsfm.camera_refinement import (
     refine_cameras,
     refine_cameras_and_shapes,
     reprojection_error,
-    rigid_factorization,
     rigid_shape_step,
 )
+from nldr.nrsfm.factorization import initialize_cameras, metric_upgrade, rigid_factorization
 from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
-from nldr.nrsfm.metrics import center_per_frame, e3d
+from nldr.nrsfm.metrics import (
+    camera_error,
+    center_per_frame,
+    e3d,
+    global_camera_alignment,
+    procrustes_rotation,
+)
 from nldr.nrsfm.reprojection import OrthographicReprojection
+from nldr.nrsfm.rotations import camera_to_quaternion, nearest_orthonormal_rows, quaternion_to_camera
+from nldr.nrsfm.unknown_cameras import tnh_with_camera_refinement, tune_tau
+from nldr.result import CONVERGED, MAX_ITER
 
 # ---------------------------------------------------------------------------------------------------------
 # helpers
@@ -95,8 +97,9 @@ def test_rigid_factorization_full_data_is_exact():
     W, _, _, _ = rigid_scene(seed=1)
     F, P = W.shape[0], W.shape[1] // 2
     fac = rigid_factorization(W)
-    assert fac.M.shape == (F, 2, 3) and fac.S.shape == (3, P)
-    assert (fac.n_iter, fac.converged) == (0, True)
+    assert fac.M.shape == (F, 2, 3) and fac.S.shape == (3, P) and fac.x is fac.S
+    assert (fac.nit, fac.status, fac.success) == (0, CONVERGED, True)
+    assert fac.fun == pytest.approx(fac.rms**2 * W.size, rel=1e-9, abs=1e-26)
     np.testing.assert_allclose(np.einsum("fck,kp->fcp", fac.M, fac.S).reshape(F, 2 * P), W, atol=1e-12)
     assert fac.rms < 1e-13
 
@@ -107,7 +110,8 @@ def test_rigid_factorization_missing_data_completes_the_tracks():
     F, P = W.shape[0], W.shape[1] // 2
     mask = random_visibility_mask(F, P, 0.3, random_state=2)
     fac = rigid_factorization(hide(W, mask), mask)
-    assert fac.converged and fac.n_iter > 0
+    assert fac.success and fac.nit > 0 and fac.message.startswith("variable projection")
+    assert fac.fun == pytest.approx(fac.rms**2 * 2 * mask.sum(), rel=1e-9)
     # noise-free and generic: the rank-3 completion is unique, so the unobserved entries are recovered too
     fitted = np.einsum("fck,kp->fcp", fac.M, fac.S).reshape(F, 2 * P)
     np.testing.assert_allclose(fitted, W, atol=1e-8 * np.abs(W).max())
@@ -367,10 +371,11 @@ def test_refine_cameras_returns_to_the_truth_with_true_shapes(degrees, missing):
     h = res.cost_history
     assert h[0] == pytest.approx(reprojection_error(W, mask, R0, X), rel=1e-12)
     # the batched LM only accepts decreasing frames and float addition is monotone: exactly non-increasing
-    assert np.all(np.diff(h) <= 0) and h.size == res.n_iter + 1
-    assert res.converged and res.cost == pytest.approx(res.frame_cost.sum(), rel=1e-12)
+    assert np.all(np.diff(h) <= 0) and h.size == res.nit + 1
+    assert res.success and res.fun == h[-1] == pytest.approx(res.frame_cost.sum(), rel=1e-12)
+    assert res.x is res.R and res.wall_time > 0
     # zero-residual problem: Gauss-Newton converges quadratically, down to rounding (~eps^2 ||W||^2)
-    assert res.cost <= 1e-20 * np.sum(W**2)
+    assert res.fun <= 1e-20 * np.sum(W**2)
     # ||(R_f - R_true,f) S_f,obs||_F >= sigma_min(S_f,obs) ||R_f - R_true,f||_F, frame by frame
     S = X.reshape(F, 3, P)
     for f in range(F):
@@ -391,7 +396,7 @@ def test_refine_cameras_on_noisy_tracks_matches_an_independent_solver():
     W_noisy = W + 0.05 * rng.standard_normal(W.shape)
     R0 = perturb_cameras(R_true, 20.0, rng)
     res = refine_cameras(hide(W_noisy, mask), mask, R0, X)
-    assert np.all(np.diff(res.cost_history) <= 0) and res.cost < res.cost_history[0]
+    assert np.all(np.diff(res.cost_history) <= 0) and res.fun < res.cost_history[0]
     S, Wf = X.reshape(F, 3, P), W_noisy.reshape(F, 2, P)
     for f in range(F):
         obs = mask[f]
@@ -451,7 +456,8 @@ def test_rigid_bundle_adjustment_reaches_zero_error_monotonically(missing):
     R0 = perturb_cameras(R_true, 10.0, np.random.default_rng(18))
     Wh = hide(W, mask)
     res = refine_cameras_and_shapes(Wh, mask, R0, rigid_shape_step(Wh, mask), max_outer=300, tol=1e-12)
-    assert res.n_outer == res.history.size == res.shape_history.size and res.energy_history is None
+    assert res.nit == res.history.size == res.shape_history.size and res.energy_history is None
+    assert res.fun == res.history[-1]  # without a penalty the reprojection error is monitored
     # e(R_{k-1}, X_k) <= e(R_{k-1}, X_{k-1}) (the shape step is a least-squares solve, up to its 1e-12
     # relative ridge) and e(R_k, X_k) <= e(R_{k-1}, X_k) (the LM only accepts decreases); the slack is
     # a few hundred ulps of the cost's scale ||W||^2
@@ -464,12 +470,12 @@ def test_rigid_bundle_adjustment_reaches_zero_error_monotonically(missing):
     # noise-free rigid data: the global minimum is 0; the ridge of the shape step (relative 1e-12) leaves
     # a floor ~(1e-12 cond)^2 ||W||^2, far below this bound
     assert res.history[-1] <= 1e-14 * scale
-    assert reprojection_error(W, mask, res.R, res.X) == pytest.approx(res.history[-1], rel=1e-9, abs=1e-25)
+    assert reprojection_error(W, mask, res.R, res.x) == pytest.approx(res.history[-1], rel=1e-9, abs=1e-25)
     assert camera_error(res.R, R_true) < 1e-6  # degrees
 
 
 def test_refine_cameras_and_shapes_penalty_callback_and_stopping():
-    """The callback sees k = 1..n_outer; energy_history = penalty(X_k) + history; tol stops the loop."""
+    """The callback sees k = 1..nit; energy_history = penalty(X_k) + history; tol stops the loop."""
     W, R_true, _, _ = rigid_scene(seed=19)
     R0 = perturb_cameras(R_true, 5.0, np.random.default_rng(19))
     seen, shapes = [], []
@@ -481,13 +487,15 @@ def test_refine_cameras_and_shapes_penalty_callback_and_stopping():
     res = refine_cameras_and_shapes(
         W, None, R0, rigid_shape_step(W), max_outer=50, tol=1e-2, penalty=lambda X: 0.5, callback=callback
     )
-    assert seen == list(range(1, res.n_outer + 1))
+    assert seen == list(range(1, res.nit + 1))
     np.testing.assert_allclose(res.energy_history, 0.5 + res.history, rtol=1e-15)
-    np.testing.assert_array_equal(shapes[-1], res.X)
-    assert res.converged and res.n_outer < 50 and res.success
+    np.testing.assert_array_equal(shapes[-1], res.x)
+    assert res.success and res.status == CONVERGED and res.nit < 50
+    assert res.fun == res.energy_history[-1]  # the monitored quantity: the joint energy
     assert "relative decrease" in res.message
     capped = refine_cameras_and_shapes(W, None, R0, rigid_shape_step(W), max_outer=2, tol=1e-12)
-    assert capped.n_outer == 2 and not capped.converged and "max_outer" in capped.message
+    assert capped.nit == 2 and capped.status == MAX_ITER and not capped.success
+    assert "max_outer" in capped.message
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -495,21 +503,21 @@ def test_refine_cameras_and_shapes_penalty_callback_and_stopping():
 
 
 @pytest.mark.parametrize("det", [1, -1])
-def test_align_global_undoes_a_global_rotation_or_reflection(det):
-    """align_global(Q G + translations, G) = centred G exactly; it agrees with e3d(..., align=True)."""
+def test_global_alignment_of_shapes_undoes_a_global_rotation_or_reflection(det):
+    """e3d(..., align=True) of Q G + translations against G is zero: the Procrustes rotation of the
+    centred shapes gives back Q^T (with a reflection only when allowed)."""
     _, _, X = deforming_scene(seed=20)
     F, P = X.shape[0], X.shape[1] // 3
     rng = np.random.default_rng(20 + det)
     Q = random_orthogonal(rng, det)
     shift = rng.standard_normal((F, 3, 1))
     moved = (np.einsum("kl,flp->fkp", Q, X.reshape(F, 3, P)) + shift).reshape(F, 3 * P)
-    aligned = align_global(moved, X, P)
-    np.testing.assert_allclose(aligned, center_per_frame(X, P), atol=1e-10)
-    assert e3d(aligned, X, P) < 1e-10
-    noisy = moved + 0.1 * rng.standard_normal(moved.shape)
-    assert e3d(align_global(noisy, X, P), X, P) == pytest.approx(e3d(noisy, X, P, align=True), rel=1e-12)
+    centred, truth = center_per_frame(moved, P), center_per_frame(X, P)
+    np.testing.assert_allclose(procrustes_rotation(centred, truth, P), Q.T, atol=1e-10)
+    assert e3d(moved, X, P, align=True) < 1e-10
+    assert e3d(moved, X, P) > 0.1  # without the alignment the rotation counts as error
     if det == -1:  # a reflection cannot be undone by a rotation
-        assert e3d(align_global(moved, X, P, allow_reflection=False), X, P) > 0.1
+        assert np.linalg.det(procrustes_rotation(centred, truth, P, allow_reflection=False)) > 0
 
 
 @pytest.mark.parametrize("det", [1, -1])
@@ -606,7 +614,7 @@ def test_nan_at_unobserved_entries_is_ignored():
     )
     assert reprojection_error(Wh, mask, R_true, X) == reprojection_error(W0, mask, R_true, X)
     res = refine_cameras(Wh, mask, perturb_cameras(R_true, 10.0, np.random.default_rng(23)), X)
-    assert np.all(np.isfinite(res.cost_history)) and res.cost <= 1e-20 * np.sum(W**2)
+    assert np.all(np.isfinite(res.cost_history)) and res.fun <= 1e-20 * np.sum(W**2)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -637,8 +645,8 @@ def test_real_data_pickup_camera_initialisation_and_rigid_refinement(data_dir):
     assert res.shape_history[0] == pytest.approx(start, rel=1e-12)
     interleaved = np.column_stack([res.shape_history, res.history]).ravel()
     assert np.all(np.diff(interleaved) <= 1e-13 * np.sum(W**2))
-    assert res.history[-1] <= start  # measured 132.7 after 8 outer iterations
-    assert reprojection_error(W, None, res.R, res.X) == pytest.approx(res.history[-1], rel=1e-9)
+    assert res.history[-1] <= start  # measured 132.7
+    assert reprojection_error(W, None, res.R, res.x) == pytest.approx(res.history[-1], rel=1e-9)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -648,30 +656,59 @@ def test_real_data_pickup_camera_initialisation_and_rigid_refinement(data_dir):
 def test_tnh_with_camera_refinement_descends_and_converges():
     """The joint energy never increases (each half-step minimises it over one block), the run stops
     by its windowed test, and the cameras end closer to the truth than they started."""
-    from nldr.nrsfm.unknown_cameras import tnh_with_camera_refinement
-
     W, R_true, X = deforming_scene(seed=31)
     R0 = perturb_cameras(R_true, 10.0, np.random.default_rng(31))
     res = tnh_with_camera_refinement(W, None, R0, tau=0.5, max_outer=3000, tol=1e-9, window=5)
     energy = res.energy_history
-    assert res.converged and "over 5 iteration" in res.message
+    assert res.success and "over 5 iteration" in res.message and res.fun == energy[-1]
     assert np.all(np.diff(energy) <= 1e-9 * energy[0])
     assert camera_error(res.R, R_true) < camera_error(R0, R_true)
 
 
 @pytest.mark.parametrize("minimum", [-0.7, 0.3, 1.6])
 def test_tune_tau_finds_the_minimum_of_a_smooth_function_of_log_tau(minimum):
-    from nldr.nrsfm.unknown_cameras import tune_tau
-
     res = tune_tau(lambda tau: (np.log10(tau) - minimum) ** 2 + 1.0, log10_bounds=(-1, 2), xatol=1e-3)
-    assert abs(np.log10(res.tau) - minimum) < 2e-3 and res.value == pytest.approx(1.0, abs=1e-5)
-    assert res.n_eval == len(res.history) and min(v for _, v in res.history) == res.value
+    assert abs(np.log10(res.tau) - minimum) < 2e-3 and res.fun == pytest.approx(1.0, abs=1e-5)
+    assert res.x == res.tau and res.success and 0 < res.nit <= res.nfev
+    assert res.nfev == len(res.history) and min(v for _, v in res.history) == res.fun
 
 
 def test_tune_tau_validates():
-    from nldr.nrsfm.unknown_cameras import tune_tau
-
     with pytest.raises(ValueError, match="log10_bounds"):
         tune_tau(lambda t: t, log10_bounds=(2, 1))
     with pytest.raises(ValueError, match="finite"):
         tune_tau(lambda t: np.nan)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# one result convention
+
+
+def test_every_nrsfm_solver_result_is_a_solver_result():
+    """x, fun, status, message, nit and wall_time everywhere; success means status CONVERGED; the repr
+    is one line."""
+    from nldr.nrsfm import trace_norm_heuristic
+    from nldr.nrsfm.fista import fista_tnh
+    from nldr.result import STATUS_NAMES, SolverResult
+
+    W, R_true, X = deforming_scene(n_frames=8, n_points=9, seed=41)
+    F, P = X.shape[0], X.shape[1] // 3
+    R0 = perturb_cameras(R_true, 5.0, np.random.default_rng(41))
+    W3 = W.reshape(F, 2, P)
+    results = [
+        trace_norm_heuristic(W, R_true),
+        trace_norm_heuristic(W, R_true, tau=1.0, method="fista"),
+        fista_tnh(W3, None, R_true, np.zeros((F, 3, P)), 0.0, 1.0, 50, 1e-10),
+        rigid_factorization(W),
+        refine_cameras(W, None, R0, X),
+        refine_cameras_and_shapes(W, None, R0, rigid_shape_step(W), max_outer=3),
+        tnh_with_camera_refinement(W, None, R0, 1.0, max_outer=3),
+        tune_tau(lambda tau: (np.log10(tau) - 0.5) ** 2, xatol=0.1),
+    ]
+    for res in results:
+        assert isinstance(res, SolverResult)
+        assert res.success == (res.status == CONVERGED) and res.status in STATUS_NAMES
+        assert isinstance(res.nit, int) and res.nit >= 0 and res.wall_time >= 0
+        assert np.isfinite(res.fun) and res.message
+        text = repr(res)
+        assert "\n" not in text and text.startswith(type(res).__name__) and f"nit={res.nit}" in text

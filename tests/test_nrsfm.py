@@ -10,6 +10,7 @@ import pytest
 from conftest import nuclear_norm, project, random_rotation, synthetic_sequence
 
 from nldr.data_terms import DataTerm
+from nldr.nrsfm.cvxpy_tnh import CvxpyTNH
 from nldr.nrsfm.layout import (
     cameras_from_stack,
     cameras_to_stack,
@@ -18,9 +19,9 @@ from nldr.nrsfm.layout import (
     stack_to_rows,
 )
 from nldr.nrsfm.metrics import center_per_frame, e3d, e3d_per_frame, ground_truth_sigma, procrustes_rotation
-from nldr.nrsfm.proximal import tnh_proximal
 from nldr.nrsfm.reprojection import OrthographicReprojection
-from nldr.nrsfm.tnh import TNHSolveError, TraceNormHeuristic, trace_norm_heuristic
+from nldr.nrsfm.tnh import TNHSolveError, trace_norm_heuristic
+from nldr.result import CONVERGED, MAX_ITER
 
 # ---------------------------------------------------------------------------------------------------------
 # helpers
@@ -240,32 +241,37 @@ def test_tnh_exact_fit_reprojects_and_has_minimal_nuclear_norm(missing):
     X, W, R = synthetic_sequence(n_frames=12, n_points=9, rank=3, seed=12)
     F, P = X.shape[0], X.shape[1] // 3
     mask = random_visibility_mask(F, P, missing, random_state=12)
-    result = trace_norm_heuristic(W, R, mask)
+    result = trace_norm_heuristic(W, R, mask, method="cvxpy")
     assert result.success and result.exact_fit and result.tau == 0.0 and result.solver == "SCS"
-    assert result.X.shape == X.shape
+    assert result.method == "cvxpy" and result.status == CONVERGED and "optimal" in result.message
+    assert result.x.shape == X.shape
     scale = np.abs(W).max()
     assert result.max_abs_residual < 1e-6 * scale
     term = OrthographicReprojection(W, R, mask)
-    np.testing.assert_allclose(term.residuals(result.X), 0.0, atol=1e-6 * scale)
+    np.testing.assert_allclose(term.residuals(result.x), 0.0, atol=1e-6 * scale)
     # the ground truth is feasible, so the minimum nuclear norm cannot exceed its nuclear norm
     assert result.nuclear_norm <= nuclear_norm(X) * (1 + 1e-6)
-    assert result.objective == pytest.approx(result.nuclear_norm, rel=1e-5)
-    assert result.solve_time > 0 and result.n_iter is not None
+    assert result.fun == pytest.approx(result.nuclear_norm, rel=1e-5)
+    assert result.wall_time > 0 and result.nit > 0 and result.solver_time is not None
+    # the default method (ADMM) solves the same problem
+    admm = trace_norm_heuristic(W, R, mask)
+    assert admm.method == "admm" and admm.success
+    assert admm.nuclear_norm == pytest.approx(result.nuclear_norm, rel=1e-5)
 
 
 def test_tnh_scs_agrees_with_clarabel():
     X, W, R = synthetic_sequence(n_frames=10, n_points=8, rank=3, seed=13)
     F, P = X.shape[0], X.shape[1] // 3
     mask = random_visibility_mask(F, P, 0.5, random_state=13)
-    tnh = TraceNormHeuristic(W, R, mask)
+    tnh = CvxpyTNH(W, R, mask)
     for tau in (None, 0.3):
         scs = tnh.solve(tau, solver="SCS")
         clarabel = tnh.solve(tau, solver="CLARABEL")
         assert clarabel.solver == "CLARABEL" and clarabel.success
-        assert scs.objective == pytest.approx(clarabel.objective, rel=1e-6)
+        assert scs.fun == pytest.approx(clarabel.fun, rel=1e-6)
         # a tiny SDP like this is well-posed; with the default eps 1e-6 SCS lands on CLARABEL's point
-        np.testing.assert_allclose(scs.X, clarabel.X, atol=1e-4 * np.abs(X).max())
-        assert abs(e3d(scs.X, X, P) - e3d(clarabel.X, X, P)) < 1e-4
+        np.testing.assert_allclose(scs.x, clarabel.x, atol=1e-4 * np.abs(X).max())
+        assert abs(e3d(scs.x, X, P) - e3d(clarabel.x, X, P)) < 1e-4
 
 
 def penalised_objective(term, X, tau):
@@ -277,7 +283,7 @@ def test_tnh_penalised_optimality_and_sweep():
     F, P = X.shape[0], X.shape[1] // 3
     mask = random_visibility_mask(F, P, 0.3, random_state=14)
     noisy = W + 0.05 * np.random.default_rng(14).standard_normal(W.shape)
-    tnh = TraceNormHeuristic(noisy, R, mask)
+    tnh = CvxpyTNH(noisy, R, mask)
     term = tnh.data_term
     exact = tnh.solve()
     results = [tnh.solve(0.1)]
@@ -287,12 +293,12 @@ def test_tnh_penalised_optimality_and_sweep():
     rng = np.random.default_rng(15)
     for res in results:
         assert res.success and not res.exact_fit
-        f_opt = penalised_objective(term, res.X, res.tau)
-        assert res.objective == pytest.approx(f_opt, rel=1e-5)
-        assert f_opt <= penalised_objective(term, exact.X, res.tau) + 1e-6
+        f_opt = penalised_objective(term, res.x, res.tau)
+        assert res.fun == pytest.approx(f_opt, rel=1e-5)
+        assert f_opt <= penalised_objective(term, exact.x, res.tau) + 1e-6
         assert f_opt <= penalised_objective(term, X, res.tau) + 1e-6
         for _ in range(5):
-            Y = res.X + 1e-2 * rng.standard_normal(X.shape)
+            Y = res.x + 1e-2 * rng.standard_normal(X.shape)
             assert f_opt <= penalised_objective(term, Y, res.tau) + 1e-6
     # a larger tau trades reprojection error for a smaller nuclear norm
     nuclear = [res.nuclear_norm for res in results]
@@ -306,15 +312,39 @@ def test_tnh_penalised_optimality_and_sweep():
 
 def test_tnh_errors():
     X, W, R = synthetic_sequence(n_frames=4, n_points=5, seed=16)
-    with pytest.raises(ValueError, match="tau"):
-        trace_norm_heuristic(W, R, tau=-1.0)
+    for method in ("admm", "cvxpy"):
+        with pytest.raises(ValueError, match="tau"):
+            trace_norm_heuristic(W, R, tau=-1.0, method=method)
+    with pytest.raises(ValueError, match="method must be one of"):
+        trace_norm_heuristic(W, R, method="SCS")  # a conic solver is an option of method="cvxpy"
     with pytest.raises(ValueError, match="solver"):
-        trace_norm_heuristic(W, R, solver="NO_SUCH_SOLVER")
+        trace_norm_heuristic(W, R, method="cvxpy", solver="NO_SUCH_SOLVER")
+    with pytest.raises(ValueError, match="penalised form, tau > 0"):
+        trace_norm_heuristic(W, R, method="fista")
+    with pytest.raises(ValueError, match=r"unknown options for method 'fista': \['beta'\]"):
+        trace_norm_heuristic(W, R, tau=1.0, method="fista", beta=1.0)
+    with pytest.raises(ValueError, match=r"unknown options for method 'cvxpy': \['tol'\]"):
+        trace_norm_heuristic(W, R, method="cvxpy", tol=1e-6)
     # a zero camera cannot reproduce non-zero image points: the exact fit is infeasible
     R_zero = R.copy()
     R_zero[0] = 0.0
     with pytest.raises(TNHSolveError, match="status"):
-        trace_norm_heuristic(W, R_zero, solver="CLARABEL")
+        trace_norm_heuristic(W, R_zero, method="cvxpy", solver="CLARABEL")
+    with pytest.raises(ValueError, match="no exact fit exists"):
+        trace_norm_heuristic(W, R_zero)
+
+
+def test_tnh_cvxpy_is_optional(monkeypatch):
+    """Without cvxpy the ADMM and FISTA methods work and method="cvxpy" says how to install it."""
+    import sys
+
+    X, W, R = synthetic_sequence(n_frames=4, n_points=5, seed=17)
+    monkeypatch.setitem(sys.modules, "cvxpy", None)  # import cvxpy now raises ImportError
+    monkeypatch.delitem(sys.modules, "nldr.nrsfm.cvxpy_tnh", raising=False)
+    with pytest.raises(ImportError, match=r"pip install nldr\[cvxpy\]"):
+        trace_norm_heuristic(W, R, method="cvxpy")
+    assert trace_norm_heuristic(W, R).success
+    assert trace_norm_heuristic(W, R, tau=1.0, method="fista").success
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -336,13 +366,13 @@ def test_real_data_reprojects_exactly_with_ground_truth_cameras():
 def test_real_data_tnh_exact_fit_pickup():
     seq = load_real("pickup").subsample(10)
     P = seq.n_points
-    result = trace_norm_heuristic(stack_to_rows(seq.W, 2), seq.R)
+    result = trace_norm_heuristic(stack_to_rows(seq.W, 2), seq.R, method="cvxpy")
     # paper Table 3: 0.0487; this implementation measures 0.0475 (benchmarks/bench_tnh.py)
-    assert e3d(result.X, stack_to_rows(seq.S), P) == pytest.approx(0.0475, abs=5e-4)
+    assert e3d(result.x, stack_to_rows(seq.S), P) == pytest.approx(0.0475, abs=5e-4)
 
 
 # ---------------------------------------------------------------------------------------------------------
-# penalised TNH by proximal gradient
+# penalised TNH by proximal gradient (method="fista")
 
 
 @pytest.mark.parametrize("tau", [0.1, 1.0, 10.0])
@@ -353,12 +383,13 @@ def test_proximal_tnh_meets_the_optimality_condition_and_matches_cvxpy(tau):
     F, P = X.shape[0], X.shape[1] // 3
     mask = random_visibility_mask(F, P, 0.3, random_state=21)
     noisy = W + 0.05 * np.random.default_rng(21).standard_normal(W.shape)
-    res = tnh_proximal(noisy, R, mask, tau=tau, tol=1e-14, max_iter=50_000)
-    assert res.converged
+    res = trace_norm_heuristic(noisy, R, mask, tau=tau, method="fista", tol=1e-14, max_iter=50_000)
+    assert res.success and res.status == CONVERGED and res.method == "fista" and not res.exact_fit
     term = OrthographicReprojection(noisy, R, mask)
-    assert res.objective == pytest.approx(penalised_objective(term, res.X, tau), rel=1e-12)
-    minus_grad = -term.gradient(res.X)
-    U, s, Vt = np.linalg.svd(res.X, full_matrices=False)
+    assert res.fun == pytest.approx(penalised_objective(term, res.x, tau), rel=1e-12)
+    assert res.max_abs_residual == pytest.approx(np.abs(term.residuals(res.x)).max(), rel=1e-12)
+    minus_grad = -term.gradient(res.x)
+    U, s, Vt = np.linalg.svd(res.x, full_matrices=False)
     k = int(np.sum(s > 1e-8 * s[0]))
     U, Vt = U[:, :k], Vt[:k]
     np.testing.assert_allclose(U.T @ minus_grad @ Vt.T, tau * np.eye(k), atol=1e-5 * max(tau, 1))
@@ -366,19 +397,25 @@ def test_proximal_tnh_meets_the_optimality_condition_and_matches_cvxpy(tau):
         minus_grad - U @ (U.T @ minus_grad) - (minus_grad @ Vt.T) @ Vt + U @ (U.T @ minus_grad @ Vt.T) @ Vt
     )
     assert np.linalg.norm(outside, 2) <= tau * (1 + 1e-5)
-    reference = TraceNormHeuristic(noisy, R, mask).solve(tau, solver="CLARABEL")
-    assert res.objective <= reference.objective * (1 + 1e-6)
-    assert res.objective == pytest.approx(penalised_objective(term, reference.X, tau), rel=1e-5)
+    reference = trace_norm_heuristic(noisy, R, mask, tau=tau, method="cvxpy", solver="CLARABEL")
+    assert res.fun <= reference.fun * (1 + 1e-6)
+    assert res.fun == pytest.approx(penalised_objective(term, reference.x, tau), rel=1e-5)
 
 
-def test_proximal_tnh_warm_start_and_errors():
+def test_proximal_tnh_warm_start_cap_and_errors():
     X, W, R = synthetic_sequence(n_frames=8, n_points=6, rank=2, seed=22)
-    cold = tnh_proximal(W, R, tau=1.0, tol=1e-12)
-    warm = tnh_proximal(W, R, tau=1.0, X0=cold.X, tol=1e-12)
-    assert warm.n_iter < cold.n_iter and warm.objective <= cold.objective * (1 + 1e-12)
+
+    def fista(W_, R_, **options):
+        return trace_norm_heuristic(W_, R_, method="fista", **options)
+
+    cold = fista(W, R, tau=1.0, tol=1e-12)
+    warm = fista(W, R, tau=1.0, X0=cold.x, tol=1e-12)
+    assert warm.nit < cold.nit and warm.fun <= cold.fun * (1 + 1e-12)
+    capped = fista(W, R, tau=1.0, tol=1e-12, max_iter=2)
+    assert capped.status == MAX_ITER and not capped.success and capped.nit == 2
     with pytest.raises(ValueError, match="tau"):
-        tnh_proximal(W, R, tau=0.0)
+        fista(W, R, tau=0.0)
     with pytest.raises(ValueError, match="X0"):
-        tnh_proximal(W, R, tau=1.0, X0=np.zeros((3, 3)))
+        fista(W, R, tau=1.0, X0=np.zeros((3, 3)))
     with pytest.raises(ValueError, match="W2d"):
-        tnh_proximal(W[:, :-1], R, tau=1.0)
+        fista(W[:, :-1], R, tau=1.0)

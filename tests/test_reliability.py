@@ -15,7 +15,7 @@ from protocol import REPO, SNAKEMAKE, quick_config, quick_results
 
 from nldr.data_terms import MaskedLeastSquares
 from nldr.kernels import rbf_kernel
-from nldr.nrsfm import OrthographicReprojection, TraceNormHeuristic
+from nldr.nrsfm import OrthographicReprojection, trace_norm_heuristic
 from nldr.regularizer import minimize_regularized
 from nldr.robust_kpca import closed_form_rank_penalty
 
@@ -199,11 +199,11 @@ def test_a_frame_with_no_observed_point_stays_finite():
     W2d = np.einsum("fck,fkp->fcp", R, X.reshape(F, 3, P)).reshape(F, 2 * P)
     mask = rng.random((F, P)) > 0.3
     mask[5] = False  # frame 5 shows nothing
-    tnh = TraceNormHeuristic(W2d, R, mask).solve(1e-2)
+    tnh = trace_norm_heuristic(W2d, R, mask, tau=1e-2, method="cvxpy")
     res = minimize_regularized(
-        OrthographicReprojection(W2d, R, mask), tnh.X, gamma=0.1, tau=1e-4, rho0=1e-3, rho_max=10.0
+        OrthographicReprojection(W2d, R, mask), tnh.x, gamma=0.1, tau=1e-4, rho0=1e-3, rho_max=10.0
     )
-    assert _finite(tnh.X, res.x)
+    assert _finite(tnh.x, res.x)
 
 
 @pytest.mark.pipeline

@@ -4,13 +4,13 @@ Three changes make :func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement
 here against the slow-but-plain path it replaces:
 
 1. Singular value thresholding through the Gram matrix of the short side
-   (:func:`~nldr.nrsfm.proximal._soft_threshold_gram`) instead of a full SVD
-   (:func:`~nldr.nrsfm.proximal._soft_threshold_singular_values`).
+   (:func:`~nldr.nrsfm.svt.soft_threshold_singular_values_gram`) instead of a full SVD
+   (:func:`~nldr.nrsfm.svt.soft_threshold_singular_values`).
 2. The camera LM's normal equations from 3x3 and 3x2 summaries of each frame
-   (:func:`~nldr.nrsfm.cameras._lm_normal_equations`) instead of the explicit Jacobian.
+   (:func:`~nldr.nrsfm.camera_refinement.lm_normal_equations`) instead of the explicit Jacobian.
 3. The shape step's FISTA tolerance follows the alternation's progress (loose while the joint energy
    falls fast, the former 1e-12 near convergence) instead of 1e-12 throughout
-   (:func:`~nldr.nrsfm.unknown_cameras._tnh_with_camera_refinement_reference`).
+   (:func:`~nldr.reference.nrsfm.tnh_with_camera_refinement_reference`).
 
 Tolerances. (1) and (2) are the same quantities computed differently: they agree to rounding,
 a small multiple of eps times the size of the data. (3) changes the path of the alternation, not its
@@ -22,7 +22,7 @@ run stopped by the default test may be from the fixed point. The fast run must l
 that distance of the reference (triangle inequality: both are within about that distance of the fixed
 point). The joint energy is invariant under a global rotation Q of the shapes (cameras R Q^T), and the
 two paths may end at slightly different rotations (0.03 degrees on pickup), so shapes and cameras are
-compared after one global rotation, the gauge of every NRSfM evaluation (:mod:`nldr.nrsfm.cameras`).
+compared after one global rotation, the gauge of every NRSfM evaluation (:mod:`nldr.nrsfm.metrics`).
 """
 
 from __future__ import annotations
@@ -32,15 +32,18 @@ import pytest
 from conftest import random_rotation
 
 import nldr.nrsfm.unknown_cameras as uc
-from nldr.nrsfm.cameras import _lm_normal_equations, _quaternion_to_camera, initialize_cameras
+from nldr.nrsfm import trace_norm_heuristic
+from nldr.nrsfm.camera_refinement import lm_normal_equations
+from nldr.nrsfm.factorization import initialize_cameras
+from nldr.nrsfm.fista import fista_tnh
 from nldr.nrsfm.metrics import center_per_frame, e3d, procrustes_rotation
-from nldr.nrsfm.proximal import (
-    _GRAM_SAFETY,
-    _fista,
-    _soft_threshold_gram,
-    _soft_threshold_singular_values,
-    tnh_proximal,
+from nldr.nrsfm.rotations import quaternion_to_camera_batch
+from nldr.nrsfm.svt import (
+    GRAM_SAFETY,
+    soft_threshold_singular_values,
+    soft_threshold_singular_values_gram,
 )
+from nldr.reference.nrsfm import tnh_with_camera_refinement_reference
 
 EPS = np.finfo(float).eps
 
@@ -85,8 +88,8 @@ def test_gram_thresholding_matches_the_full_svd(shape, rng):
     )
     s = np.concatenate([s, t + np.array([-1e-3, -1e-6, -1e-9, 1e-9, 1e-6, 1e-3])])[::-1]
     Y = matrix_with_singular_values(s, shape, rng)
-    X_ref, nuc_ref = _soft_threshold_singular_values(Y, t)
-    X, nuc = _soft_threshold_gram(Y, t)
+    X_ref, nuc_ref = soft_threshold_singular_values(Y, t)
+    X, nuc = soft_threshold_singular_values_gram(Y, t)
     bound = 100 * max(shape) * EPS * s.max() + 4 * min(shape) * EPS * s.max() ** 2 / t
     assert np.abs(X - X_ref).max() <= bound
     assert nuc == pytest.approx(nuc_ref, abs=bound)
@@ -94,16 +97,16 @@ def test_gram_thresholding_matches_the_full_svd(shape, rng):
 
 
 def test_gram_thresholding_falls_back_to_the_svd_when_the_threshold_is_tiny(rng):
-    """Eigenvalue errors (n eps s_max^2) above _GRAM_SAFETY t^2: the SVD path, bit for bit."""
+    """Eigenvalue errors (n eps s_max^2) above GRAM_SAFETY t^2: the SVD path, bit for bit."""
     Y = matrix_with_singular_values(np.logspace(2, -8, 30), (30, 60), rng)
     t = 1e-6
-    assert 30 * EPS * 1e4 > _GRAM_SAFETY * t * t
-    X, nuc = _soft_threshold_gram(Y, t)
-    X_ref, nuc_ref = _soft_threshold_singular_values(Y, t)
+    assert 30 * EPS * 1e4 > GRAM_SAFETY * t * t
+    X, nuc = soft_threshold_singular_values_gram(Y, t)
+    X_ref, nuc_ref = soft_threshold_singular_values(Y, t)
     np.testing.assert_array_equal(X, X_ref)
     assert nuc == nuc_ref
     # and a threshold above every singular value gives zero
-    X, nuc = _soft_threshold_gram(Y, 200.0)
+    X, nuc = soft_threshold_singular_values_gram(Y, 200.0)
     assert nuc == 0.0 and not X.any()
 
 
@@ -114,13 +117,14 @@ def test_fista_with_gram_thresholding_follows_the_svd_iterates():
     W3 = np.where(np.concatenate([mask, mask], axis=1), W, 0.0).reshape(F, 2, P)
     m3 = mask[:, None, :].astype(float)
     start = np.zeros((F, 3, P))
-    fast = _fista(W3, m3, R, start, 0.0, 0.3, 400, 1e-10, _soft_threshold_gram)
-    slow = _fista(W3, m3, R, start, 0.0, 0.3, 400, 1e-10, _soft_threshold_singular_values)
-    assert fast.n_iter == slow.n_iter
-    assert np.abs(fast.X - slow.X).max() <= 1e-9 * np.abs(slow.X).max()
+    fast = fista_tnh(W3, m3, R, start, 0.0, 0.3, 400, 1e-10, soft_threshold_singular_values_gram)
+    slow = fista_tnh(W3, m3, R, start, 0.0, 0.3, 400, 1e-10, soft_threshold_singular_values)
+    assert fast.success and fast.nit == slow.nit
+    assert np.abs(fast.x - slow.x).max() <= 1e-9 * np.abs(slow.x).max()
     assert fast.nuclear_norm == pytest.approx(slow.nuclear_norm, rel=1e-12)
-    public = tnh_proximal(W, R, mask, tau=0.3, max_iter=400, tol=1e-10)
-    np.testing.assert_allclose(public.X, fast.X.reshape(F, 3 * P), rtol=0, atol=1e-12)
+    assert fast.fun == 0.3 * fast.nuclear_norm + fast.reprojection_error
+    public = trace_norm_heuristic(W, R, mask, tau=0.3, method="fista", max_iter=400, tol=1e-10)
+    np.testing.assert_allclose(public.x, fast.x.reshape(F, 3 * P), rtol=0, atol=1e-12)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -131,7 +135,7 @@ def test_lm_normal_equations_match_the_explicit_jacobian(rng):
     """J^T J and -J^T r from the 3x3 / 3x2 summaries equal the sums over the explicit (2, P, 4) Jacobian."""
     F, P = 7, 11
     q = rng.standard_normal((F, 4))
-    _, J = _quaternion_to_camera(q / np.linalg.norm(q, axis=1, keepdims=True), True)
+    _, J = quaternion_to_camera_batch(q / np.linalg.norm(q, axis=1, keepdims=True), True)
     S = rng.standard_normal((F, 3, P))
     mask = rng.random((F, P)) > 0.3
     E = rng.standard_normal((F, 2, P)) * mask[:, None, :]
@@ -139,7 +143,7 @@ def test_lm_normal_equations_match_the_explicit_jacobian(rng):
     C = (S * mask[:, None, :]) @ S.transpose(0, 2, 1)
     C2 = np.zeros((F, 6, 6))
     C2[:, :3, :3] = C2[:, 3:, 3:] = C
-    JtJ, g = _lm_normal_equations(J, C2, S @ E.transpose(0, 2, 1))
+    JtJ, g = lm_normal_equations(J, C2, S @ E.transpose(0, 2, 1))
     scale = np.abs(J).max() ** 2 * np.abs(S).max() ** 2 * P
     np.testing.assert_allclose(JtJ, np.einsum("fcpi,fcpj->fij", D, D), rtol=0, atol=1e-13 * scale)
     np.testing.assert_allclose(g, np.einsum("fcpi,fcp->fi", D, E), rtol=0, atol=1e-13 * scale)
@@ -152,10 +156,10 @@ def test_lm_normal_equations_match_the_explicit_jacobian(rng):
 def aligned_distance(a, b, P):
     """Relative shape distance and max camera difference of run a to run b after the global rotation
     Q (det +1) that best maps a's shapes onto b's."""
-    F = a.X.shape[0]
-    Q = procrustes_rotation(a.X, b.X, P, allow_reflection=False)
-    Xa = np.einsum("kl,flp->fkp", Q, a.X.reshape(F, 3, P)).reshape(a.X.shape)
-    return np.linalg.norm(Xa - b.X) / np.linalg.norm(b.X), float(np.abs(a.R @ Q.T - b.R).max())
+    F = a.x.shape[0]
+    Q = procrustes_rotation(a.x, b.x, P, allow_reflection=False)
+    Xa = np.einsum("kl,flp->fkp", Q, a.x.reshape(F, 3, P)).reshape(a.x.shape)
+    return np.linalg.norm(Xa - b.x) / np.linalg.norm(b.x), float(np.abs(a.R @ Q.T - b.R).max())
 
 
 @pytest.mark.parametrize(("tau", "seed"), [(2.0, 0), (1.0, 2)])
@@ -164,21 +168,20 @@ def test_adaptive_shape_tolerance_keeps_the_converged_result(tau, seed, monkeypa
     F, P = mask.shape
     R0 = initialize_cameras(W, mask)
     counts = []
-    fista = uc._fista
 
     def counting(*args, **kwargs):
-        out = fista(*args, **kwargs)
-        counts.append(out.n_iter)
+        out = fista_tnh(*args, **kwargs)
+        counts.append(out.nit)
         return out
 
-    monkeypatch.setattr(uc, "_fista", counting)
-    ref = uc._tnh_with_camera_refinement_reference(W, mask, R0, tau)
+    monkeypatch.setattr(uc, "fista_tnh", counting)
+    ref = tnh_with_camera_refinement_reference(W, mask, R0, tau)
     ref_iterations, counts[:] = sum(counts), []
     fast = uc.tnh_with_camera_refinement(W, mask, R0, tau)
     fast_iterations = sum(counts)
-    tight = uc._tnh_with_camera_refinement_reference(W, mask, R0, tau, tol=1e-13)
-    assert ref.converged and fast.converged and tight.converged
-    assert tight.n_outer > 1.5 * ref.n_outer  # the tight run does go further towards the fixed point
+    tight = tnh_with_camera_refinement_reference(W, mask, R0, tau, tol=1e-13)
+    assert ref.success and fast.success and tight.success
+    assert tight.nit > 1.5 * ref.nit  # the tight run does go further towards the fixed point
 
     # distance of a default-tolerance run to the fixed point (measured: 2e-4 to 4e-4 relative)
     reach_X, reach_R = aligned_distance(ref, tight, P)
@@ -190,11 +193,11 @@ def test_adaptive_shape_tolerance_keeps_the_converged_result(tau, seed, monkeypa
     assert E_tight <= E_ref and E_ref - E_tight <= 1e-6 * E_tight
     assert abs(E_fast - E_ref) <= 2 * (E_ref - E_tight) + 1e-12 * E_ref
     # the evaluation the tau search sees: e3D within 2x the reference's own distance to the fixed point
-    e_ref, e_fast, e_tight = (e3d(r.X, X_true, P, align=True) for r in (ref, fast, tight))
+    e_ref, e_fast, e_tight = (e3d(r.x, X_true, P, align=True) for r in (ref, fast, tight))
     assert abs(e_fast - e_ref) <= 2 * abs(e_ref - e_tight) + 1e-9
     # the point of the exercise: the joint energy still never increases, with far fewer FISTA iterations
     assert np.all(np.diff(fast.energy_history) <= 1e-12 * fast.energy_history[0])
-    assert abs(fast.n_outer - ref.n_outer) <= 0.1 * ref.n_outer
+    assert abs(fast.nit - ref.nit) <= 0.1 * ref.nit
     assert fast_iterations < 0.6 * ref_iterations
 
 
@@ -202,9 +205,9 @@ def test_shape_tol_ratio_zero_is_the_fixed_tolerance_alternation():
     """shape_tol_ratio=0 runs every shape step to shape_tol: the reference up to the thresholding."""
     W, mask, _, _ = scene(n_frames=8, n_points=10, seed=4)
     R0 = initialize_cameras(W, mask)
-    ref = uc._tnh_with_camera_refinement_reference(W, mask, R0, 3.0)
+    ref = tnh_with_camera_refinement_reference(W, mask, R0, 3.0)
     fixed = uc.tnh_with_camera_refinement(W, mask, R0, 3.0, shape_tol_ratio=0.0, shape_momentum=False)
-    assert fixed.n_outer == ref.n_outer
+    assert fixed.nit == ref.nit
     np.testing.assert_allclose(fixed.energy_history, ref.energy_history, rtol=1e-9)
 
 
@@ -217,6 +220,7 @@ def test_tnh_with_camera_refinement_validates_the_shape_options():
         ({"shape_tol_max": np.nan}, "shape_tol_max"),
         ({"shape_max_iter": 0}, "shape_max_iter"),
         ({"tau": 0.0}, "tau"),
+        ({"svt": "gram"}, "svt"),
     ]:
         args = {"tau": 1.0, **kwargs}
         with pytest.raises(ValueError, match=name):

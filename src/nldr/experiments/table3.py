@@ -31,7 +31,7 @@ from threadpoolctl import threadpool_limits
 from .. import paper as paper_numbers
 from .._validation import check_count, check_positive
 from ..datasets import load_mocap
-from ..nrsfm import OrthographicReprojection, TraceNormHeuristic, e3d, random_visibility_mask, stack_to_rows
+from ..nrsfm import OrthographicReprojection, e3d, random_visibility_mask, stack_to_rows, trace_norm_heuristic
 from ..paper import paper_frame
 from ..plotting import figure1
 from ..regularizer import minimize_regularized
@@ -102,7 +102,7 @@ def _tnh_call_options(tnh_options: Mapping | None) -> tuple[str, dict]:
     solver as is (e.g. ``max_iters``).
     """
     options = dict(tnh_options or {})
-    solver = str(options.pop("solver", "SCS")).upper()
+    solver = str(options.pop("solver", "ADMM")).upper()
     eps = options.pop("eps", None)
     if eps is not None:
         if solver != "SCS":
@@ -165,7 +165,8 @@ def run_sequence(
         Per-stage iteration limit of the regularizer (its default when None).
     tnh_options : mapping, optional
         ``solver`` (default "SCS"), ``eps`` (SCS's eps_abs = eps_rel) and further solver options for
-        :meth:`~nldr.nrsfm.TraceNormHeuristic.solve`; unset keys take the library's defaults.
+        :func:`~nldr.nrsfm.trace_norm_heuristic` (``ADMM``: its options; else a cvxpy conic solver
+        and its ``solver_options``); unset keys take the library's defaults.
     progress : callable, optional
         Receives one line per finished method.
     n_jobs : int, default 1
@@ -241,20 +242,25 @@ def run_sequence(
             )
 
     wall0, cpu0 = time.perf_counter(), time.process_time()
-    tnh = TraceNormHeuristic(W2d, seq.R, mask).solve(None, solver=solver, solver_options=solver_options)
+    if solver == "ADMM":
+        tnh = trace_norm_heuristic(W2d, seq.R, mask, method="admm", **solver_options)
+    else:  # a cvxpy conic solver
+        tnh = trace_norm_heuristic(
+            W2d, seq.R, mask, method="cvxpy", solver=solver, solver_options=solver_options
+        )
     record(
         "TNH",
-        tnh.X,
+        tnh.x,
         np.nan,
         time.perf_counter() - wall0,
         time.process_time() - cpu0,
         tnh.success,
-        tnh.n_iter or 0,
-        f"{tnh.solver} exact fit: {tnh.status}",
+        tnh.nit,
+        f"{tnh.solver} exact fit: {tnh.message}",
         tnh,
     )
 
-    jobs = [(data_term, tnh.X, WIDTHS[width](tnh.X), regularizer_options) for width in widths]
+    jobs = [(data_term, tnh.x, WIDTHS[width](tnh.x), regularizer_options) for width in widths]
     if n_jobs > 1 and len(jobs) > 1:
         with ProcessPoolExecutor(max_workers=min(n_jobs, len(jobs))) as pool:
             solved = list(pool.map(_kernel_solve_in_worker, jobs))

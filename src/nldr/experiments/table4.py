@@ -4,7 +4,7 @@ One run = one subsampled CMU mocap sequence, one setting (full data or a fractio
 point) observations removed) and one seed of the visibility mask. The protocol of the paper's
 Section 4.3, with the choices of docs/REPRODUCTION.md#table-4-tnh:
 
-1. Cameras from rigid factorisation (:func:`~nldr.nrsfm.cameras.initialize_cameras`).
+1. Cameras from rigid factorisation (:func:`~nldr.nrsfm.factorization.initialize_cameras`).
 2. TNH with the cameras refined in alternation, run to convergence from the rigid cameras for each
    tau (:func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement`); tau chosen by Brent's bounded
    search on log10(tau) minimising e3D against ground truth (an oracle for the baseline, as in the
@@ -26,9 +26,17 @@ import pandas as pd
 
 from .. import paper as paper_numbers
 from .._validation import check_positive
-from ..nrsfm import OrthographicReprojection, e3d, random_visibility_mask, stack_to_rows
-from ..nrsfm.cameras import camera_error, initialize_cameras, refine_cameras_and_shapes
-from ..nrsfm.unknown_cameras import tnh_with_camera_refinement, tune_tau
+from ..nrsfm import (
+    OrthographicReprojection,
+    camera_error,
+    e3d,
+    initialize_cameras,
+    random_visibility_mask,
+    refine_cameras_and_shapes,
+    stack_to_rows,
+    tnh_with_camera_refinement,
+    tune_tau,
+)
 from ..regularizer import minimize_regularized
 from .base import JobOutput
 from .mocap import WIDTHS, MocapExperiment, Reconstructions, check_sequence, every_nth_frame, setting_label
@@ -177,27 +185,27 @@ def run_sequence(
     def tnh_error(t):
         res = tnh_with_camera_refinement(W2d, mask, R0, t, max_outer=tnh_max_outer, tol=tnh_tol)
         solved[t] = res
-        return e3d(res.X, X_gt, P, align=True)
+        return e3d(res.x, X_gt, P, align=True)
 
     start = time.perf_counter()
     search = tune_tau(tnh_error, log10_bounds=log10_tau_bounds, xatol=xatol)
     best = solved[search.tau]
     record(
         "TNH",
-        best.X,
+        best.x,
         best.R,
         search.tau,
         np.nan,
-        best.n_outer,
+        best.nit,
         time.perf_counter() - start,
-        best.converged,
-        f"tau* = {search.tau:.4g} after {search.n_eval} evaluations; {best.message}",
+        best.success,
+        f"tau* = {search.tau:.4g} after {search.nfev} evaluations; {best.message}",
     )
 
     options = dict(regularizer_options or {})
     for width in widths:
-        gamma = WIDTHS[width](best.X)
-        state = {"X": best.X}
+        gamma = WIDTHS[width](best.x)
+        state = {"X": best.x}
 
         def kernel_shape_step(R, gamma=gamma, state=state):
             res = minimize_regularized(
@@ -219,13 +227,13 @@ def run_sequence(
         )
         record(
             f"Kernel {width}",
-            alt.X,
+            alt.x,
             alt.R,
             tau,
             gamma,
-            alt.n_outer,
+            alt.nit,
             time.perf_counter() - start,
-            alt.converged,
+            alt.success,
             alt.message,
         )
 

@@ -1,13 +1,24 @@
-"""Non-rigid structure from motion (paper Section 4.3): layouts, e3D metric, reprojection term, TNH.
+"""Non-rigid structure from motion (paper Section 4.3): layouts, e3D metric, reprojection term, TNH,
+camera estimation.
 
-TNH (the trace-norm heuristic) is solved by cvxpy (:class:`TraceNormHeuristic`) or, in its exact-fit
-form and for full-length sequences, by ADMM (:func:`tnh_admm`).
+Known cameras (Table 3): :func:`trace_norm_heuristic` is the one entry point of TNH (the trace-norm
+heuristic, eq. 12), exact-fit by ADMM (default), penalised by FISTA, or through cvxpy (optional
+dependency) as the reference; it returns a :class:`TNHResult`.
+
+Unknown cameras (Table 4): :func:`initialize_cameras` (rigid factorisation,
+:mod:`nldr.nrsfm.factorization`), :func:`tnh_with_camera_refinement` and :func:`tune_tau`
+(:mod:`nldr.nrsfm.unknown_cameras`) on top of the camera LM and the shape/camera alternation
+(:mod:`nldr.nrsfm.camera_refinement`, :mod:`nldr.nrsfm.rotations`); evaluation up to the global gauge
+by :func:`e3d` (``align=True``) and :func:`camera_error`.
 
 Shapes are samples as rows, X (F, 3P); image tracks W (F, 2P); cameras R (F, 2, 3); visibility
 masks (F, P). See :mod:`nldr.nrsfm.layout` for conversions from the benchmark's stacked matrices.
+Every solver result derives from :class:`nldr.result.SolverResult` (``x``, ``fun``, ``success``,
+``status``, ``message``, ``nit``, ``wall_time``).
 """
 
-from .admm import tnh_admm
+from .camera_refinement import CameraShapeResult, refine_cameras_and_shapes
+from .factorization import initialize_cameras
 from .layout import (
     cameras_from_stack,
     cameras_to_stack,
@@ -15,9 +26,18 @@ from .layout import (
     rows_to_stack,
     stack_to_rows,
 )
-from .metrics import center_per_frame, e3d, e3d_per_frame, ground_truth_sigma, procrustes_rotation
+from .metrics import (
+    camera_error,
+    center_per_frame,
+    e3d,
+    e3d_per_frame,
+    global_camera_alignment,
+    ground_truth_sigma,
+    procrustes_rotation,
+)
 from .reprojection import OrthographicReprojection
-from .tnh import TNHResult, TNHSolveError, TraceNormHeuristic, trace_norm_heuristic
+from .tnh import TNHResult, TNHSolveError, trace_norm_heuristic
+from .unknown_cameras import TauSearchResult, tnh_with_camera_refinement, tune_tau
 
 __all__ = [
     "stack_to_rows",
@@ -30,10 +50,16 @@ __all__ = [
     "ground_truth_sigma",
     "center_per_frame",
     "procrustes_rotation",
+    "global_camera_alignment",
+    "camera_error",
     "OrthographicReprojection",
-    "TraceNormHeuristic",
+    "trace_norm_heuristic",
     "TNHResult",
     "TNHSolveError",
-    "trace_norm_heuristic",
-    "tnh_admm",
+    "initialize_cameras",
+    "refine_cameras_and_shapes",
+    "CameraShapeResult",
+    "tnh_with_camera_refinement",
+    "tune_tau",
+    "TauSearchResult",
 ]

@@ -27,6 +27,12 @@ the reconstruction is already in the world frame) is the orthogonal Procrustes s
 every frame is centred, the pooled per-coordinate variance equals the mean per-frame variance, so the
 pooled alternative would give sqrt(mean(var)) >= mean(std) (Jensen) and a slightly smaller error;
 :func:`ground_truth_sigma` exposes both.
+
+Estimated cameras (Table 4) are evaluated the same way, up to one global orthogonal transform:
+:func:`camera_error` is the mean angle to the true cameras after :func:`global_camera_alignment` (or
+after the shapes' :func:`procrustes_rotation`). With unknown cameras the shapes of ``e3d(...,
+align=True)`` are the estimate centred per frame and rotated (reflected) by the ``procrustes_rotation``
+of the centred shapes.
 """
 
 from __future__ import annotations
@@ -34,8 +40,18 @@ from __future__ import annotations
 import numpy as np
 
 from .._validation import as_float_matrix, check_count
+from .reprojection import check_cameras
+from .rotations import nearest_orthonormal_rows
 
-__all__ = ["e3d", "e3d_per_frame", "ground_truth_sigma", "center_per_frame", "procrustes_rotation"]
+__all__ = [
+    "e3d",
+    "e3d_per_frame",
+    "ground_truth_sigma",
+    "center_per_frame",
+    "procrustes_rotation",
+    "global_camera_alignment",
+    "camera_error",
+]
 
 
 def _as_shapes(X, name: str, P: int) -> np.ndarray:
@@ -171,3 +187,68 @@ def e3d(X_est, X_gt, P: int, *, align: bool = False) -> float:
         Dimensionless (in units of sigma).
     """
     return float(np.mean(e3d_per_frame(X_est, X_gt, P, align=align)))
+
+
+def global_camera_alignment(R_est, R_gt, *, allow_reflection: bool = True) -> np.ndarray:
+    """The orthogonal Q minimising sum_f ||R_gt,f - R_est,f Q^T||_F^2 (cameras transform as R Q^T
+    when shapes transform as Q S).
+
+    Parameters
+    ----------
+    R_est, R_gt : arrays, shape (F, 2, 3)
+    allow_reflection : bool, default True
+
+    Returns
+    -------
+    Q : array, shape (3, 3)
+    """
+    R_est = check_cameras(R_est, name="R_est")
+    R_gt = check_cameras(R_gt, R_est.shape[0], name="R_gt")
+    # ||A - B Q^T||^2 = const - 2 tr(Q^T A^T B): maximised by Q = U V^T from sum_f A_f^T B_f = U D V^T.
+    U, _, Vt = np.linalg.svd(np.einsum("fck,fcl->kl", R_gt, R_est))
+    if not allow_reflection and np.linalg.det(U @ Vt) < 0:
+        U[:, -1] = -U[:, -1]
+    return U @ Vt
+
+
+def camera_error(R_est, R_gt, *, Q=None, degrees: bool = True) -> float:
+    """Mean angle between estimated and true camera rotations after one global alignment.
+
+    The estimate is aligned by R_est,f Q^T, with Q from :func:`global_camera_alignment` unless given
+    (e.g. the Q of the shapes' alignment, :func:`~nldr.nrsfm.metrics.procrustes_rotation`). Both 2x3
+    cameras are projected to orthonormal rows and completed to rotations by the cross product of
+    their rows; the angle of R_gt,f^T R_est,f is arccos((trace - 1) / 2).
+
+    Parameters
+    ----------
+    R_est, R_gt : arrays, shape (F, 2, 3)
+    Q : array, shape (3, 3), optional
+        Orthogonal global alignment (det +-1).
+    degrees : bool, default True
+        Degrees (True) or radians.
+
+    Returns
+    -------
+    float
+        Mean angle over the F frames.
+    """
+    R_est = check_cameras(R_est, name="R_est")
+    R_gt = check_cameras(R_gt, R_est.shape[0], name="R_gt")
+    if Q is None:
+        Q = global_camera_alignment(R_est, R_gt)
+    else:
+        Q = as_float_matrix(Q, "Q")
+        if Q.shape != (3, 3) or not np.allclose(Q @ Q.T, np.eye(3), atol=1e-8):
+            raise ValueError(f"Q must be a 3x3 orthogonal matrix; got shape {Q.shape}")
+    A = nearest_orthonormal_rows(R_est @ Q.T)
+    B = nearest_orthonormal_rows(R_gt)
+    A3 = np.concatenate([A, np.cross(A[:, 0], A[:, 1])[:, None]], axis=1)
+    B3 = np.concatenate([B, np.cross(B[:, 0], B[:, 1])[:, None]], axis=1)
+    cos = (np.einsum("fij,fij->f", A3, B3) - 1) / 2
+    # arccos is ill-conditioned near 0: use the chordal distance ||A3 - B3||_F = 2 sqrt(2) sin(theta / 2).
+    chord = np.linalg.norm(A3 - B3, axis=(1, 2))
+    angle = np.where(
+        cos > 0.5, 2 * np.arcsin(np.clip(chord / (2 * np.sqrt(2)), 0, 1)), np.arccos(np.clip(cos, -1, 1))
+    )
+    mean = float(angle.mean())
+    return float(np.degrees(mean)) if degrees else mean

@@ -3,6 +3,11 @@
 f(X) = sum_{f,j} Z_fj ||w_f(x_j) - R_f s_f(x_j)||^2 with shapes as rows X (F, 3P), image tracks as
 rows W (F, 2P), cameras R (F, 2, 3) and the visibility mask Z (F, P); see :mod:`nldr.nrsfm.layout`
 and the data-term protocol in :mod:`nldr.data_terms`.
+
+Also the pieces the other NRSfM modules share: the input checks (:func:`check_cameras`,
+:func:`check_visibility_mask`, :func:`check_tracks`, :func:`check_shapes`) and the batched per-frame
+residual (:func:`visibility_weights`, :func:`masked_residual`) of the first-order TNH, the camera LM
+and the camera/shape alternation.
 """
 
 from __future__ import annotations
@@ -12,7 +17,15 @@ import scipy.sparse as sp
 
 from .._validation import as_float_matrix
 
-__all__ = ["OrthographicReprojection", "check_cameras", "check_visibility_mask"]
+__all__ = [
+    "OrthographicReprojection",
+    "check_cameras",
+    "check_visibility_mask",
+    "check_tracks",
+    "check_shapes",
+    "visibility_weights",
+    "masked_residual",
+]
 
 
 def check_cameras(R, n_frames: int | None = None, name: str = "R") -> np.ndarray:
@@ -131,17 +144,71 @@ class OrthographicReprojection:
         return -2.0 * np.einsum("fck,fcp->fkp", self.R, E).reshape(self.shape)
 
 
-# The batched per-frame form used by the first-order TNH and the camera LM (no sparse Jacobian):
-# tracks W3 (F, 2, P) zero where unobserved, shapes S (F, 3, P), cameras R (F, 2, 3).
+# The batched per-frame form used by the first-order TNH, the camera LM and the camera/shape alternation
+# (no sparse Jacobian): tracks W3 (F, 2, P) zero where unobserved, shapes S (F, 3, P), cameras R (F, 2, 3).
 
 
-def _visibility_weights(mask: np.ndarray) -> np.ndarray | None:
+def check_tracks(W2d, mask, *, min_points: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Validate image tracks and their visibility for the camera estimation.
+
+    Parameters
+    ----------
+    W2d : array, shape (F, 2P)
+        Image tracks as rows; entries of unobserved points are ignored (they may be NaN).
+    mask : bool array, shape (F, P) or None
+        Visibility (None: all observed).
+    min_points : int, default 3
+        Observed points every frame must have (an orthographic camera has 5 degrees of freedom).
+
+    Returns
+    -------
+    W : array, shape (F, 2P)
+        The tracks with zeros where unobserved.
+    mask : bool array, shape (F, P)
+    """
+    W2d = as_float_matrix(W2d, "W2d", allow_nan=True)
+    if W2d.shape[1] % 2:
+        raise ValueError(f"W2d must have shape (F, 2P) (image tracks as rows); got {W2d.shape}")
+    F, P = W2d.shape[0], W2d.shape[1] // 2
+    mask = check_visibility_mask(mask, (F, P))
+    mask2 = np.concatenate([mask, mask], axis=1)
+    if not np.all(np.isfinite(W2d[mask2])):
+        raise ValueError("W2d has NaN or infinite values at observed entries (where mask is True)")
+    counts = mask.sum(axis=1)
+    if np.any(counts < min_points):
+        bad = np.flatnonzero(counts < min_points)
+        raise ValueError(
+            f"mask must leave at least {min_points} observed points in every frame (an orthographic camera "
+            f"has 5 degrees of freedom); frames {bad[:10].tolist()} have fewer"
+        )
+    return np.where(mask2, W2d, 0.0), mask
+
+
+def check_shapes(X, F: int, P: int, name: str = "X") -> np.ndarray:
+    """Validate shapes as rows: a finite float array of shape (F, 3P)."""
+    X = as_float_matrix(X, name)
+    if X.shape != (F, 3 * P):
+        raise ValueError(f"{name} must have shape (F, 3P) = {(F, 3 * P)}; got {X.shape}")
+    return X
+
+
+def visibility_weights(mask: np.ndarray) -> np.ndarray | None:
     """Visibility (F, P) as 0.0/1.0 weights (F, 1, P) broadcasting over image rows; None if all observed."""
     return None if mask.all() else mask[:, None, :].astype(float)
 
 
-def _masked_residual(W3: np.ndarray, m3: np.ndarray | None, R: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """mask o (W - R S) per frame, shape (F, 2, P), with ``m3`` from :func:`_visibility_weights`."""
+def masked_residual(W3: np.ndarray, m3: np.ndarray | None, R: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """mask o (W - R S) per frame, shape (F, 2, P), with ``m3`` from :func:`visibility_weights`.
+
+    Parameters
+    ----------
+    W3 : array, shape (F, 2, P)
+        Tracks, zero where unobserved.
+    m3 : array, shape (F, 1, P) or None
+        :func:`visibility_weights` of the mask (None: all observed).
+    R : array, shape (F, 2, 3)
+    S : array, shape (F, 3, P)
+    """
     E = W3 - R @ S
     if m3 is not None:
         E *= m3

@@ -12,321 +12,129 @@ X is the (F, 3P) shape matrix (shapes as rows; its nuclear norm equals that of t
 matrix). The paper runs TNH with ground-truth cameras and tau = 1e-7 in the data's original units; at
 that strength the penalised problem is the exact-fit problem in practice, and the exact-fit form is the
 numerically sound way to solve it. Measured on pickup (every 10th frame): the penalised form with
-tau = 1e-7 has an optimal value ~1e-5, below what SCS resolves; SCS at eps 1e-5 stopped after 50
-iterations at an exact fit of the wrong nuclear norm (e3D 0.55) and at eps 1e-7 had not finished after
-14 minutes. With tau = 1e-4 ... 1e-3 the penalised form solves normally and gives the exact fit's e3D
-(0.0475) to 4 digits.
+tau = 1e-7 has an optimal value ~1e-5, below what SCS resolves; SCS at eps 1e-5 stopped early at an
+exact fit of the wrong nuclear norm (e3D 0.55) and at eps 1e-7 did not finish in reasonable time. With
+tau = 1e-4 ... 1e-3 the penalised form solves normally and gives the exact fit's e3D (0.0475) to 4
+digits.
 
-Solver choice. cvxpy turns ||X||_* into a semidefinite cone of order F + 3P (159 for pickup sampled
-every 10th frame, 234 for drink). The interior-point solver CLARABEL is accurate but its KKT systems
-grow quickly with the cone order: it did not finish pickup's exact fit within 2 minutes (a trial
-reported 9.5 minutes, e3D 0.0475). The first-order solver SCS, with the default tolerances below,
-takes 2-10 s on pickup, yoga and stretch and ~3.5 minutes on drink's full-data exact fit (its
-near-degenerate low-rank optimum slows the tail of convergence), and matches CLARABEL on small
-problems (tests/test_nrsfm.py). SCS is therefore the default; CLARABEL is the reference for small
-problems. Timings and e3D per sequence: benchmarks/bench_tnh.py.
+:func:`trace_norm_heuristic` is the one entry point; ``method`` picks the solver:
 
-For the exact-fit form ``solver="ADMM"`` bypasses cvxpy and runs :func:`nldr.nrsfm.admm.tnh_admm`, a
-first-order splitting whose cost per iteration is linear in F: seconds on the subsampled sequences
-and on full-length ones (drink, 1102 frames), which SCS cannot handle; benchmarks/bench_tnh_admm.py.
-Constructing :class:`TraceNormHeuristic` only builds cvxpy's expression trees (~0.02 s for drink's
-1102 frames); cvxpy compiles a problem on its first solve, so an ADMM-only use never pays for it.
+``"admm"`` (default)
+    The exact-fit form (tau None or 0) by ADMM (:mod:`nldr.nrsfm.admm`): cost per iteration linear in
+    F, so full-length sequences are fine; a certified duality gap.
+``"fista"``
+    The penalised form (tau > 0) by accelerated proximal gradient (:mod:`nldr.nrsfm.fista`).
+``"cvxpy"``
+    Either form as a semidefinite program through cvxpy (:mod:`nldr.nrsfm.cvxpy_tnh`; an optional
+    dependency): the reference oracle for small problems. For a tau sweep, use
+    :class:`~nldr.nrsfm.cvxpy_tnh.CvxpyTNH` directly, which compiles once.
 
-The parameter tau is a ``cvxpy.Parameter``: sweeping tau re-solves without recompiling.
+Every method returns a :class:`~nldr.nrsfm.tnh_result.TNHResult`.
 """
 
 from __future__ import annotations
 
-import time
-import warnings
-from dataclasses import dataclass, field
-
-import cvxpy as cp
-import numpy as np
+import inspect
 
 from .._validation import check_positive
+from .admm import solve_admm
+from .fista import solve_fista
 from .reprojection import OrthographicReprojection
+from .tnh_result import TNHResult, TNHSolveError
 
-__all__ = [
-    "DEFAULT_SOLVER_OPTIONS",
-    "TNHSolveError",
-    "TNHResult",
-    "TraceNormHeuristic",
-    "trace_norm_heuristic",
-]
+__all__ = ["METHODS", "TNHResult", "TNHSolveError", "trace_norm_heuristic"]
 
-#: Default options per solver. SCS: eps_abs = eps_rel = 1e-6 (cvxpy's default is 1e-5). On the paper's
-#: four sequences (every 10th frame, exact fit) e3D at 1e-5, 1e-6 and 1e-7 agrees to 1e-5 or better
-#: except drink at 1e-5 (0.0220 against 0.0221); 1e-6 costs 1.3-4x the iterations of 1e-5 and 1e-7
-#: another 1.2-3x (drink full: 5400, 23875, 67525 iterations); see benchmarks/bench_tnh.py.
-#: max_iters is raised from SCS's 1e5 so that the tolerance, not the cap, stops the solver.
-DEFAULT_SOLVER_OPTIONS: dict[str, dict] = {
-    "SCS": {"eps_abs": 1e-6, "eps_rel": 1e-6, "max_iters": 200_000},
-    "CLARABEL": {},
-}
+#: The solvers of :func:`trace_norm_heuristic` (``method`` is case-insensitive).
+METHODS = ("admm", "fista", "cvxpy")
 
-_ACCEPTED = (cp.OPTIMAL, cp.OPTIMAL_INACCURATE)
+_CVXPY_OPTIONS = ("solver", "solver_options", "warm_start", "verbose")
 
 
-class TNHSolveError(RuntimeError):
-    """The conic solver failed or did not return an optimal solution; the message has the status."""
-
-
-@dataclass
-class TNHResult:
-    """Result of a TNH solve (like ``scipy.optimize.OptimizeResult``).
-
-    Attributes
-    ----------
-    X : array, shape (F, 3P)
-        Estimated shapes as rows, in the unit of the image tracks.
-    tau : float
-        Regularisation strength; 0.0 for the exact-fit form.
-    exact_fit : bool
-        True when solved with equality constraints (the tau -> 0 limit).
-    status : str
-        cvxpy status, ``"optimal"`` or ``"optimal_inaccurate"`` (others raise :class:`TNHSolveError`).
-    solver : str
-        Name of the conic solver.
-    solve_time : float
-        Wall-clock seconds of ``problem.solve`` (includes cvxpy's compilation on the first solve).
-    solver_time : float or None
-        Seconds spent inside the solver, as it reports.
-    n_iter : int or None
-        Solver iterations, as it reports.
-    objective : float
-        Optimal value reported by the solver: ||X||_* (exact fit) or tau ||X||_* + reprojection error.
-    nuclear_norm : float
-        ||X||_* of the returned X, recomputed with an SVD.
-    reprojection_error : float
-        Sum over observed points of squared reprojection errors of the returned X (unit squared).
-    max_abs_residual : float
-        Largest absolute reprojection residual over observed coordinates (unit of the tracks).
-    solver_options : dict
-        Options passed to the solver.
-    dual : array, shape (F, 3P), or None
-        ADMM only: the multiplier Y of the splitting X = Z (dimensionless), an optimality certificate:
-        Y is a subgradient of ||.||_* and lies (to the dual residual) in the row space of the
-        constraints; see :mod:`nldr.nrsfm.admm`. None for the cvxpy solvers.
-    duality_gap : float or None
-        ADMM only: ||X||_* minus a certified lower bound on the optimum (unit of the tracks).
-    """
-
-    X: np.ndarray
-    tau: float
-    exact_fit: bool
-    status: str
-    solver: str
-    solve_time: float
-    solver_time: float | None
-    n_iter: int | None
-    objective: float
-    nuclear_norm: float
-    reprojection_error: float
-    max_abs_residual: float
-    solver_options: dict = field(default_factory=dict)
-    dual: np.ndarray | None = None
-    duality_gap: float | None = None
-
-    @property
-    def success(self) -> bool:
-        """True when the solver reported ``optimal`` (not merely ``optimal_inaccurate``)."""
-        return self.status == cp.OPTIMAL
-
-
-class TraceNormHeuristic:
-    """TNH for NRSfM with known cameras, compiled once and solved for any tau (or exactly).
-
-    Parameters
-    ----------
-    W2d : array, shape (F, 2P)
-        Image tracks as rows (row f = x of the P points, then y), length unit of the data.
-    R : array, shape (F, 2, 3)
-        Known orthographic cameras.
-    mask : bool array, shape (F, P), optional
-        True where point j is observed in frame f. Default: all observed.
-
-    Attributes
-    ----------
-    data_term : OrthographicReprojection
-        The reprojection term; its constant Jacobian is the linear operator of the constraints.
-    tau : cvxpy.Parameter
-        Non-negative parameter of the penalised problem.
-
-    Examples
-    --------
-    >>> tnh = TraceNormHeuristic(W2d, R, mask)            # doctest: +SKIP
-    >>> exact = tnh.solve()                                # tau -> 0: exact reprojection
-    >>> sweep = [tnh.solve(tau) for tau in (1e-2, 1e-1)]  # compiled once, re-solved
-    """
-
-    def __init__(self, W2d, R, mask=None):
-        self.data_term = OrthographicReprojection(W2d, R, mask)
-        F, threeP = self.data_term.shape
-        # r(X) = b - A vec(X): A = -J (constant), b = observed image coordinates.
-        A = -self.data_term.jacobian()
-        b = self.data_term.residuals(np.zeros(self.data_term.shape))
-        self._x = cp.Variable(F * threeP, name="vecX")
-        X = cp.reshape(self._x, (F, threeP), order="C")
-        self.tau = cp.Parameter(nonneg=True, name="tau", value=1.0)
-        nuclear = cp.normNuc(X)
-        self._penalised = cp.Problem(cp.Minimize(self.tau * nuclear + cp.sum_squares(A @ self._x - b)))
-        self._exact = cp.Problem(cp.Minimize(nuclear), [A @ self._x == b])
-        self._admm_last: TNHResult | None = None  # last ADMM solution, the warm start of the next
-
-    def _solve_admm(self, tau_value: float, solver_options, warm_start: bool, verbose: bool) -> TNHResult:
-        """Exact-fit TNH by :func:`~nldr.nrsfm.admm.tnh_admm` (no cvxpy compilation)."""
-        from .admm import ADMM_OPTIONS, tnh_admm  # admm imports TNHResult from this module
-
-        if tau_value != 0.0:
-            raise ValueError(
-                f"solver 'ADMM' solves the exact-fit form only (tau None or 0); got tau={tau_value:g}. "
-                f"Use a cvxpy solver (e.g. 'SCS') or nldr.nrsfm.proximal.tnh_proximal for tau > 0"
-            )
-        options = dict(solver_options or {})
-        unknown = sorted(set(options) - set(ADMM_OPTIONS))
-        if unknown:
-            raise ValueError(
-                f"unknown solver_options for ADMM: {unknown}; allowed: {sorted(ADMM_OPTIONS)} "
-                f"(verbose is the argument of solve)"
-            )
-        last = self._admm_last
-        if warm_start and last is not None and "X0" not in options and "Y0" not in options:
-            options.update(X0=last.X, Y0=last.dual)
-            options.setdefault("beta", last.solver_options["final_beta"])
-        term = self.data_term
-        result = tnh_admm(term.W, term.R, term.mask, verbose=verbose, **options)
-        self._admm_last = result
-        return result
-
-    def solve(
-        self,
-        tau: float | None = None,
-        *,
-        solver: str = "SCS",
-        solver_options: dict | None = None,
-        warm_start: bool = False,
-        verbose: bool = False,
-    ) -> TNHResult:
-        """Solve TNH, penalised (``tau > 0``) or exact-fit (``tau`` None or 0).
-
-        Parameters
-        ----------
-        tau : float or None
-            Weight of ||X||_* against the sum of squared reprojection errors (the data's squared unit
-            per unit of nuclear norm). None or 0 solves the exact-fit form.
-        solver : str, default "SCS"
-            A cvxpy conic solver that handles semidefinite cones ("SCS", "CLARABEL", ...), or
-            ``"ADMM"`` for :func:`~nldr.nrsfm.admm.tnh_admm` (exact-fit form only).
-        solver_options : dict, optional
-            Passed to the solver, replacing :data:`DEFAULT_SOLVER_OPTIONS` for that solver key by key.
-            For ADMM: keyword arguments of :func:`~nldr.nrsfm.admm.tnh_admm` (``tol``, ``max_iter``,
-            ``beta``, ``X0``, ``Y0``, ``relaxation``, ``adaptive``).
-        warm_start : bool, default False
-            Start from the previous solution (useful in tau sweeps with SCS; with ADMM the previous
-            ADMM solution, its multiplier and final penalty become ``X0``, ``Y0`` and ``beta`` unless
-            ``solver_options`` gives X0 or Y0).
-        verbose : bool, default False
-
-        Returns
-        -------
-        TNHResult
-
-        Raises
-        ------
-        TNHSolveError
-            If the solver fails or the status is neither optimal nor optimal_inaccurate (a warning is
-            issued for optimal_inaccurate).
-        ValueError
-            For an unknown solver, a negative tau, ``solver="ADMM"`` with tau > 0, unknown ADMM options
-            or an infeasible exact fit detected by ADMM (see :func:`~nldr.nrsfm.admm.tnh_admm`).
-        """
-        tau_value = 0.0 if tau is None else check_positive(tau, "tau", allow_zero=True)
-        exact = tau_value == 0.0
-        if isinstance(solver, str) and solver.upper() == "ADMM":
-            return self._solve_admm(tau_value, solver_options, warm_start, verbose)
-        if exact:
-            problem = self._exact
-        else:
-            self.tau.value = tau_value
-            problem = self._penalised
-        if not isinstance(solver, str) or solver.upper() not in cp.installed_solvers():
-            raise ValueError(
-                f"solver must be 'ADMM' or one of the installed cvxpy solvers {cp.installed_solvers()}; "
-                f"got {solver!r}"
-            )
-        solver = solver.upper()
-        options = {**DEFAULT_SOLVER_OPTIONS.get(solver, {}), **(solver_options or {})}
-        start = time.perf_counter()
-        try:
-            problem.solve(solver=solver, warm_start=warm_start, verbose=verbose, **options)
-        except cp.error.SolverError as exc:
-            raise TNHSolveError(
-                f"TNH ({'exact fit' if exact else f'tau={tau_value:g}'}) with {solver} failed: {exc}"
-            ) from exc
-        wall = time.perf_counter() - start
-        status = problem.status
-        if status not in _ACCEPTED or self._x.value is None:
-            raise TNHSolveError(
-                f"TNH ({'exact fit' if exact else f'tau={tau_value:g}'}) with {solver} ended with status "
-                f"{status!r}; try another solver or looser/tighter solver_options"
-            )
-        if status == cp.OPTIMAL_INACCURATE:
-            warnings.warn(
-                f"TNH with {solver}: status optimal_inaccurate (solver stopped before its tolerance); "
-                f"raise max_iters or loosen eps",
-                RuntimeWarning,
-                stacklevel=2,
-            )
-        X = np.asarray(self._x.value, dtype=np.float64).reshape(self.data_term.shape)
-        r = self.data_term.residuals(X)
-        stats = problem.solver_stats
-        return TNHResult(
-            X=X,
-            tau=tau_value,
-            exact_fit=exact,
-            status=status,
-            solver=solver,
-            solve_time=wall,
-            solver_time=None if stats is None else stats.solve_time,
-            n_iter=None if stats is None else stats.num_iters,
-            objective=float(problem.value),
-            nuclear_norm=float(np.linalg.svd(X, compute_uv=False).sum()),
-            reprojection_error=float(r @ r),
-            max_abs_residual=float(np.max(np.abs(r))) if r.size else 0.0,
-            solver_options=options,
-        )
+def _keyword_options(backend) -> tuple[str, ...]:
+    return tuple(
+        name for name, p in inspect.signature(backend).parameters.items() if p.kind is p.KEYWORD_ONLY
+    )
 
 
 def trace_norm_heuristic(
-    W2d,
-    R,
-    mask=None,
-    tau: float | None = None,
-    *,
-    solver: str = "SCS",
-    solver_options: dict | None = None,
-    verbose: bool = False,
+    W2d, R, mask=None, *, tau: float | None = None, method: str = "admm", **options
 ) -> TNHResult:
-    """One TNH solve; see :class:`TraceNormHeuristic` (use it directly for tau sweeps).
+    """Solve TNH with known cameras, exact-fit (``tau`` None or 0) or penalised (``tau > 0``).
 
     Parameters
     ----------
     W2d : array, shape (F, 2P)
-        Image tracks as rows.
+        Image tracks as rows (row f = x of the P points, then y), length unit of the data. Entries of
+        unobserved points are ignored (they may be NaN).
     R : array, shape (F, 2, 3)
         Known orthographic cameras.
     mask : bool array, shape (F, P), optional
-        Visibility; default all observed.
-    tau : float or None
-        None or 0: exact fit (min ||X||_* s.t. exact reprojection of the observed points).
-    solver, solver_options, verbose
-        See :meth:`TraceNormHeuristic.solve`.
+        True where point j is observed in frame f (both coordinates). Default: all observed.
+    tau : float >= 0 or None, default None
+        Weight of ||X||_* against the sum of squared reprojection errors (the data's squared unit per
+        unit of nuclear norm). None or 0 solves the exact-fit form.
+    method : {"admm", "fista", "cvxpy"}, default "admm"
+        The solver, case-insensitive (see the module docstring). ``"admm"`` solves the exact fit only,
+        ``"fista"`` the penalised form only, ``"cvxpy"`` both.
+    **options
+        Options of the method's solver:
+
+        - ``"admm"``: ``tol`` (default 1e-6), ``max_iter``, ``beta``, ``X0``, ``Y0``, ``relaxation``,
+          ``adaptive``, ``verbose``; see :func:`~nldr.nrsfm.admm.solve_admm`. Warm start from a
+          previous result ``res``: ``X0=res.x, Y0=res.dual, beta=res.options["final_beta"]``.
+        - ``"fista"``: ``X0``, ``max_iter``, ``tol``; see :func:`~nldr.nrsfm.fista.solve_fista`.
+        - ``"cvxpy"``: ``solver`` (a conic solver, default ``"SCS"``), ``solver_options``,
+          ``warm_start``, ``verbose``; see :meth:`~nldr.nrsfm.cvxpy_tnh.CvxpyTNH.solve`.
 
     Returns
     -------
     TNHResult
+        ``x`` the shapes (F, 3P) in the unit of the tracks, ``fun`` the objective, ``success``,
+        ``status``, ``message``, ``nit``, ``wall_time`` and the fit (``nuclear_norm``,
+        ``reprojection_error``, ``max_abs_residual``); ADMM adds its ``dual`` and ``duality_gap``.
+
+    Raises
+    ------
+    ValueError
+        For malformed inputs, an unknown method or option, a negative tau, ``method="admm"`` with
+        tau > 0, ``method="fista"`` without tau > 0, or an infeasible exact fit (ADMM).
+    ImportError
+        ``method="cvxpy"`` without cvxpy installed (``pip install nldr[cvxpy]``).
+    TNHSolveError
+        ``method="cvxpy"``: the conic solver failed or did not reach an optimal status.
+
+    Examples
+    --------
+    >>> exact = trace_norm_heuristic(W2d, R, mask)                    # doctest: +SKIP
+    >>> penalised = trace_norm_heuristic(W2d, R, mask, tau=0.1, method="fista")  # doctest: +SKIP
     """
-    return TraceNormHeuristic(W2d, R, mask).solve(
-        tau, solver=solver, solver_options=solver_options, verbose=verbose
-    )
+    name = method.lower() if isinstance(method, str) else method
+    if name not in METHODS:
+        raise ValueError(f"method must be one of {METHODS} (case-insensitive); got {method!r}")
+    tau_value = 0.0 if tau is None else check_positive(tau, "tau", allow_zero=True)
+    if name == "admm" and tau_value != 0.0:
+        raise ValueError(
+            f"method 'admm' solves the exact-fit form only (tau None or 0); got tau={tau_value:g}. "
+            f"Use method='fista' (or 'cvxpy') for tau > 0"
+        )
+    if name == "fista" and tau_value == 0.0:
+        raise ValueError(
+            "method 'fista' solves the penalised form, tau > 0; use method='admm' for the exact fit"
+        )
+    allowed = {
+        "admm": _keyword_options(solve_admm),
+        "fista": tuple(o for o in _keyword_options(solve_fista) if o != "tau"),  # tau is our argument
+        "cvxpy": _CVXPY_OPTIONS,
+    }[name]
+    unknown = sorted(set(options) - set(allowed))
+    if unknown:
+        raise ValueError(f"unknown options for method {name!r}: {unknown}; allowed: {sorted(allowed)}")
+
+    if name == "cvxpy":
+        from .cvxpy_tnh import CvxpyTNH  # cvxpy is optional: imported only here
+
+        return CvxpyTNH(W2d, R, mask).solve(tau, **options)
+    term = OrthographicReprojection(W2d, R, mask)  # validates the tracks, cameras and mask
+    if name == "admm":
+        return solve_admm(term, **options)
+    return solve_fista(term, tau=tau_value, **options)

@@ -6,27 +6,25 @@ chooses the TNH weight tau per sequence "by golden section search and parabolic 
 
 - The alternation must run to convergence. It is block-coordinate descent on the joint energy
   tau ||X||_* + reprojection error, and the number of outer iterations it needs grows roughly like
-  130 / tau (pickup, every 10th frame: about 1350 at tau = 0.1). Stopped after 20-60 iterations it
-  leaves e3D two to four times the converged value. So the shape step is the proximal-gradient TNH
-  (the FISTA loop of :func:`~nldr.nrsfm.proximal.tnh_proximal`, warm-started) rather than the
+  1 / tau. Stopped early it leaves e3D two to four times the converged value. So the shape step is the
+  proximal-gradient TNH (:func:`~nldr.nrsfm.fista.fista_tnh`, warm-started) rather than the
   semidefinite program, and convergence is judged over a window of outer iterations.
 - Every tau starts from the rigid initialisation (a cold start). A continuation in tau (each tau
   from the previous solution) lands in a different, better basin on yoga than the paper's number.
 
-Maintenance note (speed). One Brent search runs about 13 alternations of up to 2400 outer iterations.
-Four things make an outer iteration cheap, none of which moves the alternation's fixed point: the
-singular value thresholding goes through the small Gram matrix (:mod:`~nldr.nrsfm.proximal`); the
-shape step's FISTA tolerance follows the alternation's progress and its momentum carries over from one
-outer iteration to the next (:func:`tnh_with_camera_refinement`); the camera LM forms its normal
-equations from 3x3 summaries and stops a frame once its cost changes only by rounding
-(:func:`~nldr.nrsfm.cameras.refine_cameras`). On pickup at tau = 0.1 (1330 outer iterations) FISTA
-iterations fell from 68 000 to 5 100, LM iterations per camera step from 12.4 to 3.6, and the run from
-21 s to 3 s; the Table 4 evaluations speed up 8x overall (benchmarks/bench_table4.py). The first
-implementation is kept as :func:`_tnh_with_camera_refinement_reference` for tests and benchmarks.
+Maintenance note (speed). Four things make an outer iteration cheap, none of which moves the
+alternation's fixed point: the singular value thresholding goes through the small Gram matrix
+(:mod:`~nldr.nrsfm.svt`); the shape step's FISTA tolerance follows the alternation's progress and its
+momentum carries over from one outer iteration to the next (:func:`tnh_with_camera_refinement`); the
+camera LM forms its normal equations from 3x3 summaries and stops a frame once its cost changes only
+by rounding (:func:`~nldr.nrsfm.camera_refinement.refine_cameras`). The first implementation is kept as
+:func:`nldr.reference.nrsfm.tnh_with_camera_refinement_reference` for tests and benchmarks
+(benchmarks/bench_table4.py measures the difference).
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -34,9 +32,11 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from .._validation import check_count, check_positive
-from .cameras import CameraShapeResult, _check_tracks, refine_cameras_and_shapes
-from .proximal import _fista, _soft_threshold_gram, _soft_threshold_singular_values
-from .reprojection import _masked_residual, _visibility_weights
+from ..result import SolverResult, status_from
+from .camera_refinement import CameraShapeResult, refine_cameras_and_shapes
+from .fista import fista_tnh
+from .reprojection import check_tracks, masked_residual, visibility_weights
+from .svt import soft_threshold_singular_values_gram
 
 __all__ = ["TauSearchResult", "tnh_with_camera_refinement", "tune_tau"]
 
@@ -57,13 +57,15 @@ def tnh_with_camera_refinement(
     shape_momentum: bool = True,
     camera_max_iter: int = 50,
     callback: Callable[[int, np.ndarray, np.ndarray], None] | None = None,
+    svt: Callable[[np.ndarray, float], tuple[np.ndarray, float]] = soft_threshold_singular_values_gram,
 ) -> CameraShapeResult:
     """TNH with the cameras refined in alternation, from R0 to convergence of the joint energy.
 
     Outer iteration: the shapes minimise tau ||X||_* + reprojection error at the current cameras
-    (FISTA, warm-started from the previous shapes), then Levenberg-Marquardt refines every camera's
-    quaternion with the shapes fixed (:func:`~nldr.nrsfm.cameras.refine_cameras_and_shapes`). Stops
-    when the joint energy fell by less than ``tol`` (relative) over the last ``window`` iterations.
+    (:func:`~nldr.nrsfm.fista.fista_tnh`, warm-started from the previous shapes), then
+    Levenberg-Marquardt refines every camera's quaternion with the shapes fixed
+    (:func:`~nldr.nrsfm.camera_refinement.refine_cameras_and_shapes`). Stops when the joint energy
+    fell by less than ``tol`` (relative) over the last ``window`` iterations.
 
     The shape step is solved only as accurately as the alternation needs: its FISTA tolerance (relative
     objective decrease per iteration) is ``shape_tol_ratio`` times the relative decrease of the joint
@@ -85,7 +87,7 @@ def tnh_with_camera_refinement(
     mask : bool array, shape (F, P) or None
         Visibility (None: all observed).
     R0 : array, shape (F, 2, 3)
-        Initial cameras, e.g. :func:`~nldr.nrsfm.cameras.initialize_cameras`.
+        Initial cameras, e.g. :func:`~nldr.nrsfm.factorization.initialize_cameras`.
     tau : float > 0
         Trace-norm weight, in the unit of the tracks squared.
     max_outer : int, default 20000
@@ -110,83 +112,28 @@ def tnh_with_camera_refinement(
         LM iterations per camera step.
     callback : callable, optional
         ``callback(k, R_k, X_k)`` after every outer iteration.
+    svt : callable, default :func:`~nldr.nrsfm.svt.soft_threshold_singular_values_gram`
+        Singular value soft-thresholding of the shape step, ``svt(Y, t) -> (X, nuclear norm)``; the
+        reference alternation (:mod:`nldr.reference.nrsfm`) passes the full-SVD
+        :func:`~nldr.nrsfm.svt.soft_threshold_singular_values`.
 
     Returns
     -------
     CameraShapeResult
-        Cameras, shapes, histories (``energy_history`` is the joint energy), ``converged``.
+        Shapes ``x``, cameras ``R``, histories (``energy_history`` is the joint energy, ``fun`` its
+        last value), ``nit`` outer iterations, ``success``.
     """
-    return _alternate(
-        W2d,
-        mask,
-        R0,
-        tau,
-        max_outer=max_outer,
-        tol=tol,
-        window=window,
-        shape_max_iter=shape_max_iter,
-        shape_tol=shape_tol,
-        shape_tol_ratio=shape_tol_ratio,
-        shape_tol_max=shape_tol_max,
-        shape_momentum=shape_momentum,
-        camera_max_iter=camera_max_iter,
-        callback=callback,
-        svt=_soft_threshold_gram,
-    )
-
-
-def _tnh_with_camera_refinement_reference(
-    W2d, mask, R0, tau: float, *, max_outer: int = 20_000, tol: float = 1e-8, window: int = 10
-) -> CameraShapeResult:
-    """The alternation's shape steps as first implemented, for tests and benchmarks: every shape step
-    from a plain proximal step to the fixed FISTA tolerance 1e-12 (at most 300 iterations),
-    thresholding by a full SVD. The camera step is today's LM (:func:`~nldr.nrsfm.cameras.refine_cameras`),
-    which differs from the first one only by rounding and by stopping a frame whose cost no longer
-    changes beyond rounding, so this runs faster than the first implementation did."""
-    return _alternate(W2d, mask, R0, tau, max_outer=max_outer, tol=tol, window=window, **_REFERENCE_STEPS)
-
-
-# The reference's shape and camera steps (see _tnh_with_camera_refinement_reference).
-_REFERENCE_STEPS = dict(
-    shape_max_iter=300,
-    shape_tol=1e-12,
-    shape_tol_ratio=0.0,
-    shape_tol_max=1e-12,
-    shape_momentum=False,
-    camera_max_iter=50,
-    callback=None,
-    svt=_soft_threshold_singular_values,
-)
-
-
-def _alternate(
-    W2d,
-    mask,
-    R0,
-    tau,
-    *,
-    max_outer,
-    tol,
-    window,
-    shape_max_iter,
-    shape_tol,
-    shape_tol_ratio,
-    shape_tol_max,
-    shape_momentum,
-    camera_max_iter,
-    callback,
-    svt,
-) -> CameraShapeResult:
-    """Body of :func:`tnh_with_camera_refinement` and of its reference (``svt``: the thresholding)."""
     tau = check_positive(tau, "tau")
     shape_tol = check_positive(shape_tol, "shape_tol")
     shape_tol_ratio = check_positive(shape_tol_ratio, "shape_tol_ratio", allow_zero=True)
     shape_tol_max = max(check_positive(shape_tol_max, "shape_tol_max"), shape_tol)
     shape_max_iter = check_count(shape_max_iter, "shape_max_iter")
-    W, vis = _check_tracks(W2d, mask)
+    if not callable(svt):
+        raise ValueError(f"svt must be a callable (Y, t) -> (X, nuclear norm); got {type(svt).__name__}")
+    W, vis = check_tracks(W2d, mask)
     F, P = vis.shape
     W3 = W.reshape(F, 2, P)
-    m3 = _visibility_weights(vis)
+    m3 = visibility_weights(vis)
     # The latest shapes (F, 3, P) and their nuclear norm (warm start and penalty), the number of shape
     # steps so far and the joint energy after the previous camera step (for the shape step's tolerance).
     state = {"X": np.zeros((F, 3, P)), "nuclear": 0.0, "k": 0, "energy": None, "momentum": None}
@@ -197,16 +144,16 @@ def _alternate(
         inner_tol = shape_tol_max if shape_tol_ratio > 0 else shape_tol
         if shape_tol_ratio > 0 and state["k"] > 1:
             # the joint energy after outer iteration k - 1 (its shapes, and the cameras R it produced)
-            E = _masked_residual(W3, m3, R, X)
+            E = masked_residual(W3, m3, R, X)
             energy = tau * state["nuclear"] + float(np.vdot(E, E))
             if state["energy"] is not None:
                 decrease = (state["energy"] - energy) / max(energy, 1e-300)
                 inner_tol = min(shape_tol_max, max(shape_tol, shape_tol_ratio * decrease))
             state["energy"] = energy
         momentum = state["momentum"] if shape_momentum else None
-        out = _fista(W3, m3, R, X, state["nuclear"], tau, shape_max_iter, inner_tol, svt, momentum)
-        state["X"], state["nuclear"], state["momentum"] = out.X, out.nuclear_norm, out.momentum
-        return out.X.reshape(F, 3 * P)
+        out = fista_tnh(W3, m3, R, X, state["nuclear"], tau, shape_max_iter, inner_tol, svt, momentum)
+        state["X"], state["nuclear"], state["momentum"] = out.x, out.nuclear_norm, out.momentum
+        return out.x.reshape(F, 3 * P)
 
     def penalty(X):
         return tau * state["nuclear"]  # X is the latest shape step's
@@ -225,27 +172,33 @@ def _alternate(
     )
 
 
-@dataclass
-class TauSearchResult:
-    """Result of :func:`tune_tau`.
+@dataclass(kw_only=True, repr=False)
+class TauSearchResult(SolverResult):
+    """Result of :func:`tune_tau` (a :class:`~nldr.result.SolverResult`).
 
     Attributes
     ----------
-    tau : float
-        The best tau evaluated (lowest objective).
-    value : float
+    x : float
+        The best tau evaluated (lowest objective); also available as ``tau``.
+    fun : float
         Its objective value.
+    status, message, wall_time
+        As in :class:`~nldr.result.SolverResult`; CONVERGED when Brent's method met ``xatol``.
+    nit : int
+        Iterations of Brent's method.
+    nfev : int
+        Objective evaluations (``len(history)``).
     history : list of (tau, value)
         Every evaluation, in order.
-    n_eval : int
-    message : str
     """
 
-    tau: float
-    value: float
+    nfev: int
     history: list
-    n_eval: int
-    message: str
+
+    @property
+    def tau(self) -> float:
+        """The best tau evaluated, same as ``x``."""
+        return self.x
 
 
 def tune_tau(
@@ -274,6 +227,7 @@ def tune_tau(
     -------
     TauSearchResult
     """
+    start = time.perf_counter()
     lo, hi = (float(b) for b in log10_bounds)
     if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
         raise ValueError(f"log10_bounds must be two finite numbers, low < high; got {log10_bounds!r}")
@@ -293,5 +247,12 @@ def tune_tau(
     res = minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": xatol})
     best_tau, best_value = min(history, key=lambda tv: tv[1])
     return TauSearchResult(
-        tau=best_tau, value=best_value, history=history, n_eval=len(history), message=str(res.message)
+        x=best_tau,
+        fun=best_value,
+        status=status_from(bool(res.success)),
+        message=str(res.message),
+        nit=int(res.nit),
+        wall_time=time.perf_counter() - start,
+        nfev=len(history),
+        history=history,
     )
