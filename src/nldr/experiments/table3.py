@@ -74,9 +74,10 @@ class Table3Run:
         One row per method (``"TNH"``, ``"Kernel d_max"``, ``"Kernel d_med"``): ``sequence,
         missing_fraction, seed, method, e3d, gamma`` (NaN for TNH), ``seconds`` (wall) and
         ``cpu_seconds`` of that method alone (the kernel methods exclude the TNH they start from),
-        ``converged, n_iter`` (solver iterations: SCS for TNH, L-BFGS or sweeps summed over the
-        penalty stages for the kernel methods), ``reprojection_rms`` (root mean square reprojection
-        residual over the observed image coordinates, unit of the data) and ``message``.
+        ``converged, n_iter`` (solver iterations: ADMM or the cvxpy solver for TNH, L-BFGS
+        iterations summed over the penalty stages for the kernel methods), ``reprojection_rms``
+        (root mean square reprojection residual over the observed image coordinates, unit of the
+        data) and ``message``.
     shapes : dict
         Method -> reconstruction, array (F, 3P) (shapes as rows, unit of the data).
     mask : bool array, shape (F, P)
@@ -164,7 +165,7 @@ def run_sequence(
     max_inner : int, optional
         Per-stage iteration limit of the regularizer (its default when None).
     tnh_options : mapping, optional
-        ``solver`` (default "SCS"), ``eps`` (SCS's eps_abs = eps_rel) and further solver options for
+        ``solver`` (default "ADMM"), ``eps`` (SCS's eps_abs = eps_rel) and further solver options for
         :func:`~nldr.nrsfm.trace_norm_heuristic` (``ADMM``: its options; else a cvxpy conic solver
         and its ``solver_options``); unset keys take the library's defaults.
     progress : callable, optional

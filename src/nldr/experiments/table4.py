@@ -41,7 +41,7 @@ from ..regularizer import minimize_regularized
 from .base import JobOutput
 from .mocap import WIDTHS, MocapExperiment, Reconstructions, check_sequence, every_nth_frame, setting_label
 
-__all__ = ["ROW_COLUMNS", "Table4Run", "run_sequence", "Table4"]
+__all__ = ["ROW_COLUMNS", "Table4Run", "run_sequence", "tuned_tnh", "kernel_with_camera_refinement", "Table4"]
 
 ROW_COLUMNS = [
     "sequence",
@@ -179,17 +179,17 @@ def run_sequence(
             f"camera error {row['camera_error']:.2f} deg, {n_outer} outer iterations, {seconds:.1f}s"
         )
 
-    # TNH: tau by Brent on e3D; each evaluation runs the alternation from the rigid cameras
-    solved = {}
-
-    def tnh_error(t):
-        res = tnh_with_camera_refinement(W2d, mask, R0, t, max_outer=tnh_max_outer, tol=tnh_tol)
-        solved[t] = res
-        return e3d(res.x, X_gt, P, align=True)
-
     start = time.perf_counter()
-    search = tune_tau(tnh_error, log10_bounds=log10_tau_bounds, xatol=xatol)
-    best = solved[search.tau]
+    best, search = tuned_tnh(
+        W2d,
+        mask,
+        R0,
+        X_gt,
+        log10_tau_bounds=log10_tau_bounds,
+        xatol=xatol,
+        max_outer=tnh_max_outer,
+        tol=tnh_tol,
+    )
     record(
         "TNH",
         best.x,
@@ -202,28 +202,12 @@ def run_sequence(
         f"tau* = {search.tau:.4g} after {search.nfev} evaluations; {best.message}",
     )
 
-    options = dict(regularizer_options or {})
+    schedule = dict(tau=tau, rho0=rho0, rho_growth=rho_growth, rho_max=rho_max, **(regularizer_options or {}))
     for width in widths:
         gamma = WIDTHS[width](best.x)
-        state = {"X": best.x}
-
-        def kernel_shape_step(R, gamma=gamma, state=state):
-            res = minimize_regularized(
-                OrthographicReprojection(W2d, R, mask),
-                state["X"],
-                gamma=gamma,
-                tau=tau,
-                rho0=rho0,
-                rho_growth=rho_growth,
-                rho_max=rho_max,
-                **options,
-            )
-            state["X"] = res.x
-            return res.x
-
         start = time.perf_counter()
-        alt = refine_cameras_and_shapes(
-            W2d, mask, best.R, kernel_shape_step, max_outer=kernel_max_outer, tol=kernel_tol, window=3
+        alt = kernel_with_camera_refinement(
+            W2d, mask, best.R, best.x, gamma=gamma, max_outer=kernel_max_outer, tol=kernel_tol, **schedule
         )
         record(
             f"Kernel {width}",
@@ -244,6 +228,52 @@ def run_sequence(
         mask=mask,
         ground_truth=X_gt,
         tau_search=search.history,
+    )
+
+
+def tuned_tnh(W2d, mask, R0, X_gt, *, log10_tau_bounds, xatol, max_outer, tol):
+    """TNH with cameras refined in alternation, tau chosen by Brent's search on log10(tau) minimising
+    e3D against ``X_gt`` (an oracle for the baseline, as in the paper). Each evaluation runs the
+    alternation to convergence from the rigid cameras ``R0``.
+
+    Returns
+    -------
+    (best, search) : the alternation's result at the chosen tau, and the search's
+    :class:`~nldr.nrsfm.TauSearchResult` (``search.tau``, every evaluation in ``search.history``).
+    """
+    P = W2d.shape[1] // 2
+    solved = {}
+
+    def tnh_error(t):
+        res = tnh_with_camera_refinement(W2d, mask, R0, t, max_outer=max_outer, tol=tol)
+        solved[t] = res
+        return e3d(res.x, X_gt, P, align=True)
+
+    search = tune_tau(tnh_error, log10_bounds=log10_tau_bounds, xatol=xatol)
+    return solved[search.tau], search
+
+
+def kernel_with_camera_refinement(W2d, mask, R_start, X_start, *, gamma, tau, max_outer, tol, **options):
+    """The kernel regularizer alternating with the camera LM (the paper's kernel NRSfM with unknown
+    cameras), from the cameras ``R_start`` and shapes ``X_start`` (the tuned TNH's).
+
+    Each shape step runs :func:`~nldr.regularizer.minimize_regularized` (RBF width ``gamma``, weight
+    ``tau``, further ``options`` such as the rho schedule) from the previous shapes, with the data
+    term of the current cameras; :func:`~nldr.nrsfm.refine_cameras_and_shapes` stops when the
+    reprojection error falls by less than ``tol`` (relative) over 3 outer iterations, or after
+    ``max_outer``. Returns its :class:`~nldr.nrsfm.CameraShapeResult` (shapes ``x``, cameras ``R``).
+    """
+    state = {"X": X_start}
+
+    def kernel_shape_step(R):
+        res = minimize_regularized(
+            OrthographicReprojection(W2d, R, mask), state["X"], gamma=gamma, tau=tau, **options
+        )
+        state["X"] = res.x
+        return res.x
+
+    return refine_cameras_and_shapes(
+        W2d, mask, R_start, kernel_shape_step, max_outer=max_outer, tol=tol, window=3
     )
 
 
