@@ -30,15 +30,12 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import scipy.sparse as sp
-from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import load_oil
 from nldr.reference.regularizer import (
-    kernel_mismatch_jacobian,
-    kernel_mismatch_residuals,
+    finite_difference_pre_image_step,
     minimize_regularized_alternation,
     pre_image_step,
 )
@@ -90,33 +87,6 @@ def run_solver(args) -> dict:
         "final_rank": int(res.rank_history[-1]),
         "message": res.message,
     }
-
-
-def finite_difference_pre_image_step(S, C, term, *, gamma, rho, max_iter, tol=1e-8):
-    """:func:`pre_image_step` with scipy's sparse 2-point Jacobian on the analytic sparsity pattern."""
-    shape = S.shape
-
-    def fun(x):
-        X = x.reshape(shape)
-        return np.concatenate([term.residuals(X), kernel_mismatch_residuals(X, C, gamma=gamma, rho=rho)])
-
-    J_k = kernel_mismatch_jacobian(S, gamma=gamma, rho=rho).copy()
-    J_k.data[:] = 1.0
-    sparsity = sp.vstack([(sp.csr_matrix(term.jacobian(S)) != 0).astype(float), J_k]).tocsr()
-    res = least_squares(
-        fun,
-        S.ravel(),
-        jac="2-point",
-        jac_sparsity=sparsity,
-        method="trf",
-        tr_solver="lsmr",
-        x_scale=1.0,
-        ftol=tol,
-        xtol=tol,
-        gtol=tol,
-        max_nfev=max_iter,
-    )
-    return res.x.reshape(shape)
 
 
 def run_jacobian(args) -> list[dict]:

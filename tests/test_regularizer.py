@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 from nldr._spectral import leading_eigenpairs
 from nldr.data_terms import MaskedLeastSquares
 from nldr.kernels import center_kernel, rbf_kernel
 from nldr.reference.regularizer import (
+    finite_difference_pre_image_step,
     kernel_mismatch_jacobian,
     kernel_mismatch_residuals,
     minimize_regularized_alternation,
@@ -39,38 +39,6 @@ def _central_difference(fun, S, h=1e-6):
         e[k] = h
         cols.append((fun((x + e).reshape(S.shape)) - fun((x - e).reshape(S.shape))) / (2 * h))
     return np.stack(cols, axis=1)
-
-
-def _finite_difference_pre_image_step(S, C, data_term, *, gamma, rho, max_iter, tol):
-    """The S-step of :func:`pre_image_step` with a finite-difference Jacobian on the analytic pattern.
-
-    The same least-squares problem and solver settings, but scipy's sparse 2-point differences
-    instead of the analytic Jacobian: a check of the latter on whole LM solves.
-    """
-    shape = S.shape
-
-    def fun(x):
-        X = x.reshape(shape)
-        return np.concatenate([data_term.residuals(X), kernel_mismatch_residuals(X, C, gamma=gamma, rho=rho)])
-
-    J_f = sp.csr_matrix(data_term.jacobian(S))
-    J_k = kernel_mismatch_jacobian(S, gamma=gamma, rho=rho).copy()
-    J_k.data[:] = 1.0  # the structural non-zeros (2 d per off-diagonal pair)
-    sparsity = sp.vstack([(J_f != 0).astype(float), J_k]).tocsr()
-    res = least_squares(
-        fun,
-        S.ravel(),
-        jac="2-point",
-        jac_sparsity=sparsity,
-        method="trf",
-        tr_solver="lsmr",
-        x_scale=1.0,
-        ftol=tol,
-        xtol=tol,
-        gtol=tol,
-        max_nfev=max_iter,
-    )
-    return res.x.reshape(shape)
 
 
 def _helix(n, rng, noise=0.0):
@@ -251,7 +219,7 @@ def test_finite_difference_pre_image_step_agrees_with_the_analytic_one(small_pro
     C = optimal_kernel_factor(S, gamma=0.4, tau=0.2, rho=3.0)
     kw = dict(gamma=0.4, rho=3.0, max_iter=30, tol=1e-12)
     S_analytic = pre_image_step(S, C, term, **kw)
-    S_fd = _finite_difference_pre_image_step(S, C, term, **kw)
+    S_fd = finite_difference_pre_image_step(S, C, term, **kw)
     np.testing.assert_allclose(S_fd, S_analytic, atol=1e-5)
 
 

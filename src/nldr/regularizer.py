@@ -106,6 +106,32 @@ class RegularizerResult(SolverResult):
     rank_history: np.ndarray
     n_stages: int
 
+    @classmethod
+    def from_stages(
+        cls, S, C, *, rhos, failures, energies, stage_index, stage_energy, ranks, nit, start
+    ) -> RegularizerResult:
+        """Assemble the result of a penalty-method run from its per-stage records (``failures``: one
+        line per stage that hit its iteration limit; ``start``: ``time.perf_counter()`` at entry)."""
+        if failures:
+            message = "iteration limit reached in " + "; ".join(failures)
+        else:
+            message = f"all {len(rhos)} penalty stages converged (rho {rhos[0]:g} to {rhos[-1]:g})"
+        return cls(
+            x=S,
+            fun=float(stage_energy[-1]),
+            status=MAX_ITER if failures else CONVERGED,
+            message=message,
+            nit=nit,
+            wall_time=time.perf_counter() - start,
+            C=C,
+            energy_history=np.asarray(energies, dtype=np.float64),
+            stage_of_iteration=np.asarray(stage_index, dtype=np.int64),
+            stage_energy=np.asarray(stage_energy, dtype=np.float64),
+            rho_history=np.asarray(rhos, dtype=np.float64),
+            rank_history=np.asarray(ranks, dtype=np.int64),
+            n_stages=len(rhos),
+        )
+
 
 # --------------------------------------------------------------------------------------------------
 # Kernel, energies
@@ -350,24 +376,17 @@ def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tol, gtol, ei
         if not ok:
             failures.append(f"stage {k} (rho={rho:g}): {why}")
 
-    if failures:
-        message = "iteration limit reached in " + "; ".join(failures)
-    else:
-        message = f"all {len(rhos)} penalty stages converged (rho {rhos[0]:g} to {rhos[-1]:g})"
-    return RegularizerResult(
-        x=S,
-        fun=float(stage_energy[-1]),
-        status=MAX_ITER if failures else CONVERGED,
-        message=message,
+    return RegularizerResult.from_stages(
+        S,
+        C,
+        rhos=rhos,
+        failures=failures,
+        energies=energies,
+        stage_index=stage_index,
+        stage_energy=stage_energy,
+        ranks=ranks,
         nit=nit,
-        wall_time=time.perf_counter() - start,
-        C=C,
-        energy_history=np.asarray(energies, dtype=np.float64),
-        stage_of_iteration=np.asarray(stage_index, dtype=np.int64),
-        stage_energy=np.asarray(stage_energy, dtype=np.float64),
-        rho_history=np.asarray(rhos, dtype=np.float64),
-        rank_history=np.asarray(ranks, dtype=np.int64),
-        n_stages=len(rhos),
+        start=start,
     )
 
 
