@@ -1,37 +1,53 @@
 """The experiments: one :class:`~nldr.experiments.base.Experiment` per table, in a registry.
 
 The pipeline, the notebooks and the report are generic over this registry. To add an experiment,
-write its module (a subclass of :class:`~nldr.experiments.base.Experiment`), register an instance
-below, and add its config and schema block and its notebook (docs/ARCHITECTURE.md).
+write its module (a subclass of :class:`~nldr.experiments.base.Experiment`), register it in
+``_REGISTRY`` below, and add its config and schema block and its notebook (docs/ARCHITECTURE.md).
+
+An experiment's module is imported when it is first asked for (:func:`get`), so a pipeline job
+loads only its own experiment's code; ``EXPERIMENTS`` imports them all.
 """
 
 from __future__ import annotations
 
+from importlib import import_module
+
 from .base import Experiment, Job, JobOutput, summary_stats
-from .table1 import Table1
-from .table2 import Table2, Table2Full
-from .table3 import Table3, Table3Full
-from .table4 import Table4
 
 __all__ = ["Experiment", "Job", "JobOutput", "summary_stats", "EXPERIMENTS", "get", "figure_owner"]
 
-#: Every experiment by name, the paper's tables first in the paper's order.
-EXPERIMENTS: dict[str, Experiment] = {
-    e.name: e for e in (Table1(), Table2(), Table3(), Table4(), Table2Full(), Table3Full())
+#: name -> (module in this package, class); the paper's tables first, in the paper's order.
+_REGISTRY = {
+    "table1": ("table1", "Table1"),
+    "table2": ("table2", "Table2"),
+    "table3": ("table3", "Table3"),
+    "table4": ("table4", "Table4"),
+    "table2_full": ("table2", "Table2Full"),
+    "table3_full": ("table3", "Table3Full"),
 }
+_INSTANCES: dict[str, Experiment] = {}
 
 
 def get(name: str) -> Experiment:
     """The experiment called ``name``; ValueError naming the known ones otherwise."""
-    try:
-        return EXPERIMENTS[name]
-    except KeyError:
-        raise ValueError(f"unknown experiment {name!r}; known: {', '.join(EXPERIMENTS)}") from None
+    if name not in _REGISTRY:
+        raise ValueError(f"unknown experiment {name!r}; known: {', '.join(_REGISTRY)}")
+    if name not in _INSTANCES:
+        module, cls = _REGISTRY[name]
+        _INSTANCES[name] = getattr(import_module(f".{module}", __name__), cls)()
+    return _INSTANCES[name]
 
 
 def figure_owner(figure: str) -> Experiment:
     """The experiment that draws ``figure``."""
-    for experiment in EXPERIMENTS.values():
-        if figure in experiment.figures:
-            return experiment
+    for name in _REGISTRY:
+        if figure in get(name).figures:
+            return get(name)
     raise ValueError(f"no experiment draws figure {figure!r}")
+
+
+def __getattr__(attr: str):
+    # EXPERIMENTS (every experiment by name) is built on first use: importing it loads every module.
+    if attr == "EXPERIMENTS":
+        return {name: get(name) for name in _REGISTRY}
+    raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")
