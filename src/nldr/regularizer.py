@@ -34,6 +34,23 @@ kink where an eigenvalue crosses the threshold lambda_star and l* jumps from 0 t
 (both candidates tie there). phi is the minimum of two smooth branches, so the kink is concave (the
 slope drops from rho lambda to rho (lambda - l*^2)): it can never hold a minimiser, and L-BFGS steps
 over it.
+
+Maintenance note (the isolation guard: why unobserved coordinates can escape, and the first rho that
+stops it). With the uncentred RBF kernel, trace K = n whatever S is. While every eigenvalue lies at or
+below the threshold lambda_star(tau, rho) (see :mod:`nldr._spectral`), C = 0 and the regularizer is
+rho/2 ||K||_F^2 = rho/2 (n + sum_{i != j} K_ij^2): it rewards moving samples apart, and coordinates
+that the data term does not hold (unobserved entries) are pushed outwards until K = I, where the
+energy is n rho/2 and its gradient vanishes (exp(-gamma d^2) ~ 0), so later stages cannot pull them
+back although they would prefer to (at rho = 1e4 the dispersed state costs far more than the fitted
+one). An isolated sample contributes the eigenvalue exactly 1 (its row of K is a unit vector). If the
+first stage already keeps an eigenvalue of 1 (lambda_star(tau, rho0) <= 1), an isolated sample costs
+phi(1) ~ tau, more than the tau / (2 sqrt(lambda_1)) it costs inside a cluster of leading eigenvalue
+lambda_1 > 1/4, and dispersal no longer pays. lambda_star = 3 (b^2/2)^(1/3) <= 1 with b = tau/(2 rho)
+holds iff b <= sqrt(2/27), i.e. rho >= tau sqrt(27/8) (:func:`isolation_safe_rho0`); later stages have a
+larger rho and a lower threshold. ``isolation_guard=True`` (the default) raises rho0 to that value.
+It changes nothing when rho0 >= tau sqrt(27/8) already, which holds for every table of the paper
+(Table 2: tau = 0.1, rho0 = 1 >= 0.184; Tables 3-4: tau = 1e-4, rho0 = 1e-3 >= 1.8e-4), so their
+results stay bit for bit.
 """
 
 from __future__ import annotations
@@ -57,6 +74,7 @@ __all__ = [
     "regularized_energy",
     "reduced_energy",
     "optimal_kernel_factor",
+    "isolation_safe_rho0",
 ]
 
 
@@ -328,6 +346,25 @@ def penalty_schedule(rho0: float, rho_growth: float, rho_max: float) -> list[flo
     return rhos
 
 
+def isolation_safe_rho0(tau: float) -> float:
+    """Smallest penalty weight whose threshold keeps an isolated sample's eigenvalue: tau sqrt(27/8).
+
+    At rho >= tau sqrt(27/8) the cubic's threshold lambda_star(tau, rho) is <= 1, so the first stage of
+    the penalty method no longer rewards pushing unobserved coordinates away from the data (see the
+    module's maintenance note on the isolation guard).
+
+    Parameters
+    ----------
+    tau : float > 0
+        Trace-norm weight.
+
+    Returns
+    -------
+    rho : float
+    """
+    return check_positive(tau, "tau") * np.sqrt(27.0 / 8.0)
+
+
 def _stage_reduced(S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint):
     shape = S.shape
 
@@ -404,6 +441,7 @@ def minimize_regularized(
     tol: float = 1e-10,
     gtol: float = 1e-6,
     eigensolver: str = "auto",
+    isolation_guard: bool = True,
 ) -> RegularizerResult:
     """Minimise ``f(S) + rho/2 ||K(S) - C^T C||_F^2 + tau ||C||_*`` by the penalty method.
 
@@ -440,6 +478,11 @@ def minimize_regularized(
         "full" decomposes the whole kernel (the original implementation, kept as the reference);
         "auto" uses "partial" for n >= 300 unless the previous evaluation kept more than a quarter
         of the spectrum. The three agree to rounding (tests/test_regularizer.py).
+    isolation_guard : bool, default=True
+        Start the schedule at ``max(rho0, isolation_safe_rho0(tau))`` (and end it no lower), so that
+        the first stage cannot push unobserved coordinates away from the data (module maintenance
+        note). It changes nothing when rho0 is already >= tau sqrt(27/8), as in every table of the
+        paper; False runs the given schedule as it is (to study the escape).
 
     Returns
     -------
@@ -455,7 +498,10 @@ def minimize_regularized(
     """
     start = time.perf_counter()
     S, gamma, tau = _check_problem(data_term, S0, gamma, tau, name_S="S0")
-    rhos = penalty_schedule(rho0, rho_growth, rho_max)
+    rhos = penalty_schedule(rho0, rho_growth, rho_max)  # validates the schedule as given
+    if isolation_guard and rho0 < isolation_safe_rho0(tau):
+        floor = isolation_safe_rho0(tau)
+        rhos = penalty_schedule(floor, rho_growth, max(rho_max, floor))
     max_inner = check_count(3000 if max_inner is None else max_inner, "max_inner")
     tol, gtol = check_positive(tol, "tol"), check_positive(gtol, "gtol")
     eigensolver = check_eigensolver(eigensolver)

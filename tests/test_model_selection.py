@@ -1,0 +1,218 @@
+"""Hold-out model selection (nldr.model_selection) and the isolation guard of the penalty method."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_limits
+
+from nldr._spectral import cubic_threshold
+from nldr.baselines import mean_impute, ppca_impute
+from nldr.data_terms import MaskedLeastSquares
+from nldr.model_selection import (
+    DEFAULT_TAUS,
+    baseline_grid,
+    holdout_folds,
+    median_gamma,
+    select_imputer,
+    select_regularizer,
+)
+from nldr.regularizer import isolation_safe_rho0, minimize_regularized
+
+
+@pytest.fixture(autouse=True)
+def one_blas_thread():
+    """Small matrices: one BLAS thread is faster beside a busy core (docs/DESIGN.md)."""
+    with threadpool_limits(1):
+        yield
+
+
+def denoising_problem(n=60, d=10, seed=1, hidden_share=1 / 3):
+    """Rows on a smooth 2-d manifold in [0, 1]^d plus Gaussian noise; a third of the entries hidden."""
+    rng = np.random.default_rng(seed)
+    t = rng.random((n, 2))
+    X = 0.5 + 0.5 * np.sin(t @ (3 * rng.normal(size=(2, d))) + 2 * np.pi * rng.random(d))
+    Y = X + 0.1 * rng.normal(size=X.shape)
+    mask = rng.random(X.shape) >= hidden_share
+    return X, np.where(mask, Y, np.nan), mask
+
+
+def fold_error(W, mask, hidden, gamma, tau, **options):
+    """The hold-out error of one candidate on one fold, by hand."""
+    train = mask & ~hidden
+    W_train = np.where(train, W, np.nan)
+    res = minimize_regularized(
+        MaskedLeastSquares(W_train, train), mean_impute(W_train, train), gamma=gamma, tau=tau,
+        isolation_guard=True, **options,
+    )
+    return np.mean((res.x - W)[hidden] ** 2)
+
+
+# --------------------------------------------------------------------------------------------------
+# Folds
+# --------------------------------------------------------------------------------------------------
+
+
+def test_folds_partition_the_observed_entries_and_repeat_with_the_seed():
+    _, _, mask = denoising_problem(n=30, d=6)
+    folds = holdout_folds(mask, 4, random_state=3)
+    total = np.sum(folds, axis=0)
+    assert total.max() == 1 and np.all(total[~mask] == 0)  # disjoint, only observed entries
+    assert total.sum() == mask.sum()  # every column has plenty of entries: nothing kept back
+    again = holdout_folds(mask, 4, random_state=3)
+    assert all(np.array_equal(a, b) for a, b in zip(folds, again, strict=True))
+    other = holdout_folds(mask, 4, random_state=4)
+    assert not all(np.array_equal(a, b) for a, b in zip(folds, other, strict=True))
+
+
+def test_a_sparse_column_keeps_a_training_entry_in_every_fold():
+    mask = np.ones((8, 3), dtype=bool)
+    mask[1:, 2] = False  # column 2 has one observed entry
+    for hidden in holdout_folds(mask, 2, random_state=0):
+        assert np.all((mask & ~hidden).any(axis=0))
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"mask": np.ones((5, 5), dtype=bool)}, "shape"),
+        ({"taus": [0.1, -1.0]}, "taus"),
+        ({"gammas": []}, "gammas"),
+        ({"n_folds": 1}, "n_folds"),
+        ({"tau": 1.0}, "tau"),
+    ],
+)
+def test_select_regularizer_rejects_bad_input_naming_it(kwargs, match):
+    _, W, mask = denoising_problem(n=12, d=4)
+    args = {"mask": mask, **kwargs}
+    with pytest.raises(ValueError, match=match):
+        select_regularizer(W, args.pop("mask"), **args)
+
+
+def test_a_column_without_observed_entries_is_refused():
+    _, W, mask = denoising_problem(n=12, d=4)
+    mask[:, 1] = False
+    with pytest.raises(ValueError, match="column"):
+        select_regularizer(W, mask)
+
+
+# --------------------------------------------------------------------------------------------------
+# select_regularizer
+# --------------------------------------------------------------------------------------------------
+
+
+def test_cv_score_is_the_hand_computed_holdout_error_and_the_refit_is_the_solver():
+    _, W, mask = denoising_problem(n=25, d=5)
+    taus, gamma = [0.1, 1.0], median_gamma(W, mask)
+    sel = select_regularizer(W, mask, taus=taus, gammas=[gamma], n_folds=2, warm_start=False)
+    folds = holdout_folds(mask, 2, random_state=0)
+    for tau in taus:
+        errors = [fold_error(W, mask, h, gamma, tau, tol=1e-7, gtol=1e-4) for h in folds]
+        row = sel.cv_results_[sel.cv_results_["tau"] == tau].iloc[0]
+        assert row["mean_test_error"] == pytest.approx(np.mean(errors), rel=1e-12)
+        assert row["std_test_error"] == pytest.approx(np.std(errors, ddof=1), rel=1e-9)
+    assert list(sel.cv_results_.columns) == ["tau", "gamma", "mean_test_error", "std_test_error", "fit_time"]
+    best = sel.cv_results_["mean_test_error"].idxmin()
+    assert sel.tau_ == sel.cv_results_["tau"][best]
+    refit = minimize_regularized(
+        MaskedLeastSquares(W, mask), mean_impute(W, mask), gamma=sel.gamma_, tau=sel.tau_,
+        isolation_guard=True,
+    )
+    np.testing.assert_array_equal(sel.result_.x, refit.x)
+
+
+def test_warm_started_path_is_the_hand_chain_of_last_stage_solves():
+    _, W, mask = denoising_problem(n=25, d=5)
+    gamma = median_gamma(W, mask)
+    sel = select_regularizer(W, mask, taus=[1.0, 0.1], gammas=[gamma], n_folds=2)
+    hidden = holdout_folds(mask, 2, random_state=0)
+    errors = {0.1: [], 1.0: []}
+    for h in hidden:
+        train = mask & ~h
+        W_train = np.where(train, W, np.nan)
+        term = MaskedLeastSquares(W_train, train)
+        opts = {"gamma": gamma, "isolation_guard": True, "tol": 1e-7, "gtol": 1e-4}
+        first = minimize_regularized(term, mean_impute(W_train, train), tau=0.1, **opts)
+        second = minimize_regularized(term, first.x, tau=1.0, rho0=1e4, **opts)
+        errors[0.1].append(np.mean((first.x - W)[h] ** 2))
+        errors[1.0].append(np.mean((second.x - W)[h] ** 2))
+    for tau, errs in errors.items():
+        row = sel.cv_results_[sel.cv_results_["tau"] == tau].iloc[0]
+        assert row["mean_test_error"] == pytest.approx(np.mean(errs), rel=1e-12)
+
+
+def test_same_seed_same_answer():
+    _, W, mask = denoising_problem(n=25, d=5)
+    a = select_regularizer(W, mask, taus=[0.1, 1.0, 10.0], n_folds=3, random_state=7)
+    b = select_regularizer(W, mask, taus=[0.1, 1.0, 10.0], n_folds=3, random_state=7)
+    assert (a.tau_, a.gamma_) == (b.tau_, b.gamma_)
+    cols = ["tau", "gamma", "mean_test_error", "std_test_error"]
+    assert a.cv_results_[cols].equals(b.cv_results_[cols])
+    assert len(a.cv_results_) == 3 * 3  # default gammas: three multiples of the median rule
+
+
+# --------------------------------------------------------------------------------------------------
+# No escape (the isolation guard)
+# --------------------------------------------------------------------------------------------------
+
+
+def test_isolation_safe_rho0_puts_the_threshold_at_one():
+    for tau in (1e-3, 0.1, 10.0, 1e3):
+        assert cubic_threshold(tau, isolation_safe_rho0(tau)) == pytest.approx(1.0, rel=1e-12)
+
+
+def test_guard_changes_nothing_when_rho0_is_already_safe():
+    _, W, mask = denoising_problem(n=25, d=5)
+    term, S0 = MaskedLeastSquares(W, mask), mean_impute(W, mask)
+    plain = minimize_regularized(term, S0, gamma=0.5, tau=0.1, isolation_guard=False)  # rho0 1 >= 0.184
+    guarded = minimize_regularized(term, S0, gamma=0.5, tau=0.1, isolation_guard=True)
+    np.testing.assert_array_equal(plain.x, guarded.x)
+
+
+def within_observed_range(S, W, mask):
+    """Hidden entries inside [min - spread, max + spread] of their column's observed values."""
+    obs = np.where(mask, W, np.nan)
+    low, high = np.nanmin(obs, axis=0), np.nanmax(obs, axis=0)
+    spread = high - low
+    inside = (S >= low - spread) & (S <= high + spread)
+    return bool(np.all(inside[~mask]))
+
+
+def test_hidden_entries_never_escape_along_the_default_tau_grid():
+    _, W, mask = denoising_problem()
+    term, S0, gamma = MaskedLeastSquares(W, mask), mean_impute(W, mask), median_gamma(W, mask)
+    for tau in DEFAULT_TAUS:
+        res = minimize_regularized(term, S0, gamma=gamma, tau=tau, isolation_guard=True)
+        assert within_observed_range(res.x, W, mask), f"hidden entries escaped at tau={tau}"
+    # The test can fail: without the guard the paper's schedule (rho0 = 1) disperses them at tau = 100.
+    escaped = minimize_regularized(term, S0, gamma=gamma, tau=DEFAULT_TAUS[-1], isolation_guard=False)
+    assert not within_observed_range(escaped.x, W, mask)
+
+
+# --------------------------------------------------------------------------------------------------
+# Baselines
+# --------------------------------------------------------------------------------------------------
+
+
+def test_select_imputer_scores_ppca_by_hand_and_refits():
+    _, W, mask = denoising_problem(n=30, d=6)
+    impute, grid = baseline_grid("PPCA", W, mask)
+    assert grid == {"n_components": [1, 2, 3, 4, 5]}
+    sel = select_imputer(impute, W, mask, {"n_components": [1, 3]}, n_folds=3, random_state=2)
+    folds = holdout_folds(mask, 3, random_state=2)
+    for q in (1, 3):
+        errs = []
+        for h in folds:
+            train = mask & ~h
+            X_hat = ppca_impute(np.where(train, W, np.nan), train, n_components=q).x
+            errs.append(np.mean((X_hat - W)[h] ** 2))
+        row = sel.cv_results_[sel.cv_results_["n_components"] == q].iloc[0]
+        assert row["mean_test_error"] == pytest.approx(np.mean(errs), rel=1e-12)
+    refit = ppca_impute(np.where(mask, W, np.nan), mask, **sel.best_params_)
+    np.testing.assert_array_equal(sel.result_.x, refit.x)
+
+
+def test_baseline_grid_rejects_an_unknown_method():
+    _, W, mask = denoising_problem(n=12, d=4)
+    with pytest.raises(ValueError, match="method"):
+        baseline_grid("Ours", W, mask)
