@@ -240,3 +240,22 @@ def test_table4_target_has_tuned_tnh_and_both_widths_with_camera_errors(quick_ru
     assert ((np.log10(tnh["tau"]) >= lo - 1e-9) & (np.log10(tnh["tau"]) <= hi + 1e-9)).all()
     assert runs["camera_error"].notna().all() and runs["camera_error_init"].notna().all()
     assert (quick_run / R / "notebooks/table4_nrsfm_cameras.ipynb").is_file()
+
+
+@pytest.mark.pipeline
+def test_selection_target_keeps_cv_blind_and_labels_the_oracle(quick_run):
+    proc = run_snakemake(quick_run, "selection", "-c", "2", "--configfile", str(QUICK))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    table = pd.read_csv(quick_run / R / "tables/selection.csv")
+    assert list(table.columns) == TABLE_COLUMNS
+    assert {"Ours (paper values)", "Ours (CV)", "Ours (oracle grid point)"} <= set(table["method"])
+    runs = pd.concat(pd.read_csv(p) for p in (quick_run / R / "runs/selection").glob("*.csv"))
+    grid = quick_config()["selection"]["grid"]["log10_tau"]
+    taus = np.logspace(grid["min"], grid["max"], grid["num"])
+    for _, job in runs.groupby(["p", "seed"]):
+        by = job.set_index("method")
+        # CV picks a grid point, and its refit is that grid point's solve: the oracle (the best grid
+        # point on ground truth) can only be as good or better
+        assert np.isclose(taus, by.loc["Ours (CV)", "tau"], rtol=1e-12).any()
+        assert by.loc["Ours (oracle grid point)", "sse"] <= by.loc["Ours (CV)", "sse"] * (1 + 1e-12)
+    assert (quick_run / R / "notebooks/selection.ipynb").is_file()

@@ -24,6 +24,7 @@ _REGISTRY = {
     "table4": ("table4", "Table4"),
     "table2_full": ("table2", "Table2Full"),
     "table3_full": ("table3", "Table3Full"),
+    "selection": ("selection", "Selection"),
 }
 _INSTANCES: dict[str, Experiment] = {}
 
