@@ -30,8 +30,8 @@ from ..model_selection import baseline_grid, median_gamma, select_imputer, selec
 from ..paper import paper_frame
 from ..regularizer import minimize_regularized
 from ..tables import attach_paper
-from .base import Experiment, Job, JobOutput, summary_stats
-from .table2 import random_mask
+from .base import JobOutput, summary_stats
+from .table2 import Table2, random_mask
 
 __all__ = ["Selection", "METHODS"]
 
@@ -42,27 +42,19 @@ ORACLE = "Ours (oracle grid point)"
 METHODS = (PAPER, CV, ORACLE, "PPCA (CV)", "PKPCA (CV)", "RKPCA (CV)")
 
 
-class Selection(Experiment):
-    """Completion with parameters chosen from the data alone (hold-out CV), against the paper's values."""
+class Selection(Table2):
+    """Completion with parameters chosen from the data alone (hold-out CV), against the paper's values.
+
+    Its jobs and data are Table 2's (one per p and mask, the same masks); everything else is its own.
+    """
 
     name = "selection"
     title = "Parameters from the data: hold-out CV against the paper's values and an oracle"
+    in_paper = False
     notebook = "selection"
+    inherits = None
     #: the paper's Table 2 "Ours" beside our run at the paper's values
     paper = [(s, PAPER, m, v) for s, method, m, v in paper_numbers.TABLE2 if method == "Ours"]
-    render = {"digits": 3, "metrics": ["sse"], "transpose": True}
-    enumerates = ("p", "n_masks", "seed")
-
-    def jobs(self, config):
-        s = self.settings(config)
-        return [
-            Job(f"p{p:g}_seed{s['seed'] + k}", {"p": p, "seed": s["seed"] + k})
-            for p in s["p"]
-            for k in range(s["n_masks"])
-        ]
-
-    def data_files(self, config, job=None):
-        return ["oil/DataTrn.txt", "oil/DataTrnLbls.txt"]
 
     def resources(self, config, job):
         return {"mem_mb": 1000, "runtime": 30}
