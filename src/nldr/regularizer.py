@@ -75,6 +75,7 @@ __all__ = [
     "reduced_energy",
     "optimal_kernel_factor",
     "isolation_safe_rho0",
+    "penalty_method",
 ]
 
 
@@ -123,32 +124,6 @@ class RegularizerResult(SolverResult):
     rho_history: np.ndarray
     rank_history: np.ndarray
     n_stages: int
-
-    @classmethod
-    def from_stages(
-        cls, S, C, *, rhos, failures, energies, stage_index, stage_energy, ranks, nit, start
-    ) -> RegularizerResult:
-        """Assemble the result of a penalty-method run from its per-stage records (``failures``: one
-        line per stage that hit its iteration limit; ``start``: ``time.perf_counter()`` at entry)."""
-        if failures:
-            message = "iteration limit reached in " + "; ".join(failures)
-        else:
-            message = f"all {len(rhos)} penalty stages converged (rho {rhos[0]:g} to {rhos[-1]:g})"
-        return cls(
-            x=S,
-            fun=float(stage_energy[-1]),
-            status=MAX_ITER if failures else CONVERGED,
-            message=message,
-            nit=nit,
-            wall_time=time.perf_counter() - start,
-            C=C,
-            energy_history=np.asarray(energies, dtype=np.float64),
-            stage_of_iteration=np.asarray(stage_index, dtype=np.int64),
-            stage_energy=np.asarray(stage_energy, dtype=np.float64),
-            rho_history=np.asarray(rhos, dtype=np.float64),
-            rank_history=np.asarray(ranks, dtype=np.int64),
-            n_stages=len(rhos),
-        )
 
 
 # --------------------------------------------------------------------------------------------------
@@ -391,40 +366,63 @@ def _stage_reduced(S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, 
     return res.x.reshape(shape), int(res.nit), converged, str(res.message)
 
 
-def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tol, gtol, eigensolver, start):
-    """One L-BFGS solve per penalty weight, warm-started; the closed-form C after each. No validation."""
-    hint = _RankHint()
+def penalty_method(S, rhos, stage, stage_end, *, start: float) -> RegularizerResult:
+    """The penalty method's outer loop (Algorithm 1), shared by every solver of the regularizer.
+
+    For each rho of ``rhos``, ``stage(S, rho, energies) -> (S, nit, ok, why)`` minimises the energy at
+    that rho from the previous stage's S, appending one energy per inner iteration to ``energies``;
+    ``stage_end(S, rho) -> (value, C, rank)`` then gives the stage's final energy, kernel factor and
+    rank. ``start`` is ``time.perf_counter()`` at the solver's entry. No validation.
+    """
     energies: list[float] = []
     stage_index: list[int] = []
     stage_energy, ranks, failures = [], [], []
     nit = 0
-    C = np.zeros((S.shape[0], S.shape[0]))
     for k, rho in enumerate(rhos):
         before = len(energies)
-        S, stage_nit, ok, why = _stage_reduced(
-            S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint
-        )
+        S, stage_nit, ok, why = stage(S, rho, energies)
         stage_index.extend([k] * (len(energies) - before))
         nit += stage_nit
-        value, _, (lam, U, l) = _reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver, hint)
-        C = _kernel_factor(l, U)
+        value, C, rank = stage_end(S, rho)
         stage_energy.append(value)
-        ranks.append(int(np.count_nonzero(l)))
+        ranks.append(rank)
         if not ok:
             failures.append(f"stage {k} (rho={rho:g}): {why}")
-
-    return RegularizerResult.from_stages(
-        S,
-        C,
-        rhos=rhos,
-        failures=failures,
-        energies=energies,
-        stage_index=stage_index,
-        stage_energy=stage_energy,
-        ranks=ranks,
+    if failures:
+        message = "iteration limit reached in " + "; ".join(failures)
+    else:
+        message = f"all {len(rhos)} penalty stages converged (rho {rhos[0]:g} to {rhos[-1]:g})"
+    return RegularizerResult(
+        x=S,
+        fun=float(stage_energy[-1]),
+        status=MAX_ITER if failures else CONVERGED,
+        message=message,
         nit=nit,
-        start=start,
+        wall_time=time.perf_counter() - start,
+        C=C,
+        energy_history=np.asarray(energies, dtype=np.float64),
+        stage_of_iteration=np.asarray(stage_index, dtype=np.int64),
+        stage_energy=np.asarray(stage_energy, dtype=np.float64),
+        rho_history=np.asarray(rhos, dtype=np.float64),
+        rank_history=np.asarray(ranks, dtype=np.int64),
+        n_stages=len(rhos),
     )
+
+
+def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tol, gtol, eigensolver, start):
+    """One L-BFGS solve per penalty weight, warm-started; the closed-form C after each. No validation."""
+    hint = _RankHint()
+
+    def stage(S, rho, energies):
+        return _stage_reduced(
+            S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint
+        )
+
+    def stage_end(S, rho):
+        value, _, (lam, U, l) = _reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver, hint)
+        return value, _kernel_factor(l, U), int(np.count_nonzero(l))
+
+    return penalty_method(S, rhos, stage, stage_end, start=start)
 
 
 def minimize_regularized(

@@ -41,8 +41,14 @@ from scipy.sparse.linalg import LinearOperator, aslinearoperator
 from .._spectral import check_eigensolver, spectrum
 from .._validation import as_float_matrix, check_count, check_positive
 from ..data_terms import DataTerm, check_start
-from ..kernels import center_kernel, rbf_kernel_vjp, squared_distances
-from ..regularizer import RegularizerResult, penalty_schedule, reduced_energy
+from ..kernels import center_kernel, rbf_kernel, rbf_kernel_vjp
+from ..regularizer import (
+    RegularizerResult,
+    optimal_kernel_factor,
+    penalty_method,
+    penalty_schedule,
+    reduced_energy,
+)
 
 __all__ = [
     "minimize_regularized_alternation",
@@ -54,10 +60,6 @@ __all__ = [
 
 # Above this many non-zeros (about 240 MB as CSR) the kernel Jacobian is applied matrix-free.
 _SPARSE_NNZ_LIMIT = 20_000_000
-
-
-def _rbf(S: np.ndarray, gamma: float) -> np.ndarray:
-    return np.exp(-gamma * squared_distances(S))
 
 
 # --------------------------------------------------------------------------------------------------
@@ -72,7 +74,7 @@ def _upper_weights(n: int, rho: float):
 
 
 def _mismatch_residuals(S, B, gamma, rho, center, iu, w):
-    K = _rbf(S, gamma)
+    K = rbf_kernel(S, gamma)
     if center:
         K = center_kernel(K)
     return w * (K - B)[iu]
@@ -80,7 +82,7 @@ def _mismatch_residuals(S, B, gamma, rho, center, iu, w):
 
 def _mismatch_jacobian_sparse(S, gamma, rho, iu, w) -> sp.csr_matrix:
     n, d = S.shape
-    K = _rbf(S, gamma)
+    K = rbf_kernel(S, gamma)
     rows_i, rows_j = iu
     off = rows_i != rows_j
     i, j = rows_i[off], rows_j[off]
@@ -95,7 +97,7 @@ def _mismatch_jacobian_sparse(S, gamma, rho, iu, w) -> sp.csr_matrix:
 
 def _mismatch_jacobian_operator(S, gamma, rho, center, iu, w) -> LinearOperator:
     n, d = S.shape
-    K_rbf = _rbf(S, gamma)
+    K_rbf = rbf_kernel(S, gamma)
     m = iu[0].size
 
     def matvec(v):
@@ -176,6 +178,12 @@ def kernel_mismatch_jacobian(
 # --------------------------------------------------------------------------------------------------
 
 
+def _lm_options(tol: float, max_iter: int) -> dict:
+    """The S-step's least-squares settings (trust region, LSMR on the sparse Jacobian), shared by the
+    analytic and the finite-difference pre-image step so that they differ only in the Jacobian."""
+    return dict(method="trf", tr_solver="lsmr", x_scale=1.0, ftol=tol, xtol=tol, gtol=tol, max_nfev=max_iter)
+
+
 def _pre_image(S, B, data_term, gamma, rho, center, *, max_iter, tol, iu, w):
     """LM on [r_f(S); kernel-mismatch residuals]; returns (S, scipy result). No validation."""
     shape = S.shape
@@ -211,13 +219,7 @@ def _pre_image(S, B, data_term, gamma, rho, center, *, max_iter, tol, iu, w):
         fun,
         S.ravel(),
         jac=jac,
-        method="trf",
-        tr_solver="lsmr",
-        x_scale=1.0,
-        ftol=tol,
-        xtol=tol,
-        gtol=tol,
-        max_nfev=max_iter,
+        **_lm_options(tol, max_iter),
     )
     return res.x.reshape(shape), res
 
@@ -302,7 +304,7 @@ def _stage_alternation(
     iu, w = _upper_weights(n, rho)
     previous = np.inf
     for sweep in range(1, max_inner + 1):
-        K = _rbf(S, gamma)
+        K = rbf_kernel(S, gamma)
         if center:
             K = center_kernel(K)
         lam, U, l = spectrum(K, tau, rho, eigensolver)  # C-step
@@ -319,7 +321,7 @@ def _stage_alternation(
             iu=iu,
             w=w,
         )
-        K = _rbf(S, gamma)
+        K = rbf_kernel(S, gamma)
         if center:
             K = center_kernel(K)
         energy = data_term.value(S) + 0.5 * rho * float(np.sum((K - B) ** 2)) + tau * float(l.sum())
@@ -328,19 +330,6 @@ def _stage_alternation(
             return S, sweep, True, "relative energy decrease below tol"
         previous = energy
     return S, max_inner, False, f"alternation reached max_inner={max_inner} sweeps"
-
-
-def _stage_end(S, data_term, gamma, tau, rho, center, eigensolver):
-    """Energy (1) at the closed-form C of S, that C (zero-padded to (n, n)) and its rank."""
-    K = _rbf(S, gamma)
-    if center:
-        K = center_kernel(K)
-    _, U, l = spectrum(K, tau, rho, eigensolver)
-    C = np.zeros((U.shape[0], U.shape[0]))
-    C[: l.size] = l[:, None] * U.T
-    kw = dict(gamma=gamma, tau=tau, rho=rho, center=center, eigensolver=eigensolver)
-    value, _ = reduced_energy(S, data_term, **kw)
-    return value, C, int(np.count_nonzero(l))
 
 
 def minimize_regularized_alternation(
@@ -415,35 +404,18 @@ def minimize_regularized_alternation(
     eigensolver = check_eigensolver(eigensolver)
     center = bool(center)
 
-    energies: list[float] = []
-    stage_index: list[int] = []
-    stage_energy, ranks, failures = [], [], []
-    nit = 0
-    for k, rho in enumerate(rhos):
-        before = len(energies)
-        S, sweeps, ok, why = _stage_alternation(
+    def stage(S, rho, energies):
+        return _stage_alternation(
             S, data_term, gamma, tau, rho, center, max_inner, tol, lm_max_iter, lm_tol, energies, eigensolver
         )
-        stage_index.extend([k] * (len(energies) - before))
-        nit += sweeps
-        value, C, rank = _stage_end(S, data_term, gamma, tau, rho, center, eigensolver)
-        stage_energy.append(value)
-        ranks.append(rank)
-        if not ok:
-            failures.append(f"stage {k} (rho={rho:g}): {why}")
 
-    return RegularizerResult.from_stages(
-        S,
-        C,
-        rhos=rhos,
-        failures=failures,
-        energies=energies,
-        stage_index=stage_index,
-        stage_energy=stage_energy,
-        ranks=ranks,
-        nit=nit,
-        start=start,
-    )
+    def stage_end(S, rho):
+        kw = dict(gamma=gamma, tau=tau, rho=rho, center=center, eigensolver=eigensolver)
+        C = optimal_kernel_factor(S, **kw)
+        value, _ = reduced_energy(S, data_term, **kw)
+        return value, C, int(np.count_nonzero(np.any(C, axis=1)))
+
+    return penalty_method(S, rhos, stage, stage_end, start=start)
 
 
 def finite_difference_pre_image_step(S, C, data_term, *, gamma, rho, max_iter=100, tol=1e-8):
@@ -467,12 +439,6 @@ def finite_difference_pre_image_step(S, C, data_term, *, gamma, rho, max_iter=10
         S.ravel(),
         jac="2-point",
         jac_sparsity=sparsity,
-        method="trf",
-        tr_solver="lsmr",
-        x_scale=1.0,
-        ftol=tol,
-        xtol=tol,
-        gtol=tol,
-        max_nfev=max_iter,
+        **_lm_options(tol, max_iter),
     )
     return res.x.reshape(shape)
