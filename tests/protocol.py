@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import yaml
+from snakemake.utils import update_config
 
 REPO = Path(__file__).resolve().parents[1]
 FULL = REPO / "config/config.yaml"
@@ -17,13 +18,9 @@ SNAKEMAKE = [sys.executable, "-m", "snakemake", "-s", str(REPO / "Snakefile")]
 
 
 def merged(base: dict, overlay: dict) -> dict:
-    """``overlay`` laid over ``base`` as Snakemake does it: nested dicts merge, other values replace."""
+    """``overlay`` laid over ``base`` by Snakemake's own merge (nested dicts merge, others replace)."""
     out = copy.deepcopy(base)
-    for key, value in overlay.items():
-        if isinstance(value, dict) and isinstance(out.get(key), dict):
-            out[key] = merged(out[key], value)
-        else:
-            out[key] = copy.deepcopy(value)
+    update_config(out, copy.deepcopy(overlay))
     return out
 
 

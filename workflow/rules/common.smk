@@ -6,6 +6,7 @@ DATA_DIR = config["data"]["dir"]
 RESULTS = config["results"]  # config.yaml: results; quick.yaml: results/quick (never the same files)
 PAPER = [e for e in EXPERIMENTS.values() if e.in_paper]
 NOTEBOOKS = {e.notebook: e for e in EXPERIMENTS.values() if e.notebook}
+JOBS = {name: {job.id: job for job in e.jobs(config)} for name, e in EXPERIMENTS.items()}  # built once
 
 
 def experiment_of(wildcards):
@@ -13,7 +14,10 @@ def experiment_of(wildcards):
 
 
 def job_of(wildcards):
-    return experiment_of(wildcards).job(config, wildcards.job)
+    jobs = JOBS[wildcards.experiment]
+    if wildcards.job in jobs:
+        return jobs[wildcards.job]
+    return experiment_of(wildcards).job(config, wildcards.job)  # raises, naming the experiment
 
 
 def data_paths(relpaths):
@@ -22,7 +26,7 @@ def data_paths(relpaths):
 
 def run_files(experiment, ext="csv"):
     e = EXPERIMENTS[experiment] if isinstance(experiment, str) else experiment
-    return [f"{RESULTS}/runs/{e.name}/{job.id}.{ext}" for job in e.jobs(config)]
+    return [f"{RESULTS}/runs/{e.name}/{job_id}.{ext}" for job_id in JOBS[e.name]]
 
 
 def table_files(experiment):
@@ -45,8 +49,3 @@ def target_of(experiment):
     if experiment.notebook:
         return notebook_path(experiment)
     return table_files(experiment) + [figure_path(f) for f in experiment.figures]
-
-
-def data_dir_of(path):
-    """The data directory holding ``path`` (e.g. resources/oil/DataTrn.txt -> resources)."""
-    return str(Path(path).parent.parent)

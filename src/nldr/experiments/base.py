@@ -180,7 +180,11 @@ class Experiment:
 
         ``others`` maps each name of :attr:`gathers_with` to that experiment's concatenated runs.
         """
-        return attach_paper(self.summarise(runs), paper_frame(self.paper or []))
+        return attach_paper(self.summarise(runs), paper_frame(self.published(config)))
+
+    def published(self, config: Mapping) -> list:
+        """The paper's numbers that apply under ``config`` (default: :attr:`paper`, or none)."""
+        return self.paper or []
 
     # -- presentation --------------------------------------------------------------------------
     def caption(self, config: Mapping) -> str:

@@ -209,9 +209,12 @@ class MocapExperiment(Experiment):
         sequences = [job.params["sequence"]] if job else self.settings(config)["sequences"]
         return [f"nrsfm/{seq}.mat" for seq in sequences]
 
-    def load(self, job, settings, data_dir):
-        """The job's sequence, subsampled to ``settings['step']``."""
-        return load_mocap(job.params["sequence"], data_dir).subsample(settings["step"])
+    def load(self, job, settings, data_dir, progress=None):
+        """The job's sequence, subsampled to ``settings['step']``; one line to ``progress`` about it."""
+        seq = load_mocap(job.params["sequence"], data_dir).subsample(settings["step"])
+        if progress is not None:
+            progress(f"{seq.name}: {seq.n_frames} frames, {seq.n_points} points, job {job.id}")
+        return seq
 
     def summarise(self, runs):
         return summarise_e3d(runs)

@@ -27,9 +27,7 @@ from ..baselines import mean_impute
 from ..data_terms import MaskedLeastSquares
 from ..datasets import load_oil
 from ..model_selection import baseline_grid, median_gamma, select_imputer, select_regularizer
-from ..paper import paper_frame
 from ..regularizer import minimize_regularized
-from ..tables import attach_paper
 from .base import JobOutput, summary_stats
 from .table2 import Table2, random_mask
 
@@ -134,11 +132,10 @@ class Selection(Table2):
         }
         return JobOutput(rows=pd.DataFrame(rows), arrays=arrays)
 
-    def table(self, runs, config, others):
-        """:meth:`summarise` with the paper's Table 2 "Ours" beside the paper-values row, where the
-        protocol is the paper's (its first 100 rows)."""
-        published = self.paper if self.settings(config)["n_rows"] == 100 else []
-        return attach_paper(self.summarise(runs), paper_frame(published))
+    def published(self, config):
+        """The paper's Table 2 "Ours" beside the paper-values row, where the protocol is the paper's
+        (its first 100 rows)."""
+        return self.paper if self.settings(config)["n_rows"] == 100 else []
 
     def summarise(self, runs):
         rows = []

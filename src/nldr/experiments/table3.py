@@ -302,9 +302,7 @@ class Table3(MocapExperiment):
         return {"mem_mb": 2000, "runtime": 30}
 
     def run(self, job, settings, data_dir, *, progress=None, threads=1):
-        seq = self.load(job, settings, data_dir)
-        if progress is not None:
-            progress(f"{seq.name}: {seq.n_frames} frames, {seq.n_points} points, job {job.id}")
+        seq = self.load(job, settings, data_dir, progress)
         run = run_sequence(
             seq,
             missing_fraction=job.params["missing_fraction"],

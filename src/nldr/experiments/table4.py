@@ -290,9 +290,7 @@ class Table4(MocapExperiment):
         return {"mem_mb": 2000, "runtime": 60}
 
     def run(self, job, settings, data_dir, *, progress=None, threads=1):
-        seq = self.load(job, settings, data_dir)
-        if progress is not None:
-            progress(f"{seq.name}: {seq.n_frames} frames, {seq.n_points} points, job {job.id}")
+        seq = self.load(job, settings, data_dir, progress)
         tnh, kernel = dict(settings["tnh"]), dict(settings["kernel"])
         run = run_sequence(
             seq,
