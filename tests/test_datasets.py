@@ -123,3 +123,41 @@ def test_unknown_names_are_rejected():
         load_mocap("walk")
     with pytest.raises(ValueError, match="unknown data file"):
         fetch("oil/other.txt")
+
+
+def test_fetch_reverifies_a_file_already_in_place(tmp_path, mirror_copy):
+    """A file already in the data folder is not trusted: fetch checks its hash again."""
+    dest = tmp_path / "res"
+    path = fetch("oil/DataTrn.txt", dest, mirror=mirror_copy)
+    path.write_bytes(path.read_bytes()[:-10])
+    with pytest.raises(DataError, match="expected " + FILES["oil/DataTrn.txt"].sha256):
+        fetch("oil/DataTrn.txt", dest, mirror=mirror_copy)
+
+
+def test_truncated_mirror_file_is_named_not_the_temporary_copy(tmp_path, mirror_copy):
+    source = mirror_copy / "oil" / "DataTrn.txt"
+    source.write_bytes(source.read_bytes()[:1000])
+    with pytest.raises(DataError) as info:
+        fetch("oil/DataTrn.txt", tmp_path / "res", mirror=mirror_copy)
+    message = str(info.value)
+    assert str(source) in message and ".part" not in message and "Replace" in message
+
+
+def test_unreadable_mirror_file_gives_a_data_error(tmp_path, mirror_copy, monkeypatch):
+    def denied(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(datasets.shutil, "copyfileobj", denied)
+    with pytest.raises(DataError, match=r"oil/DataTrn\.txt: cannot read the mirror file .*Permission denied"):
+        fetch("oil/DataTrn.txt", tmp_path / "res", mirror=mirror_copy)
+    assert _no_leftovers(tmp_path)
+
+
+def test_verify_present_names_every_corrupt_file_and_skips_absent_ones(tmp_path, mirror_copy):
+    dest = tmp_path / "res"
+    assert datasets.verify_present(dest) == []
+    path = fetch("oil/DataTrn.txt", dest, mirror=mirror_copy)
+    assert datasets.verify_present(dest) == [path]
+    path.write_text("<html></html>")
+    with pytest.raises(DataError, match=r"oil/DataTrn\.txt: .* has sha256"):
+        datasets.verify_present(dest)

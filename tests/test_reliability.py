@@ -11,7 +11,7 @@ import pytest
 import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from protocol import REPO, SNAKEMAKE, quick_config, quick_results
+from protocol import REPO, SNAKEMAKE, quick_config, quick_results, run_snakemake
 
 from nldr.data_terms import MaskedLeastSquares
 from nldr.kernels import rbf_kernel
@@ -235,3 +235,32 @@ def test_corrupt_mirror_stops_the_pipeline_before_results(tmp_path, data_dir):
     written = [p for p in (work / "results").rglob("*") if p.is_file() and "logs" not in p.parts]
     assert not written, written  # only the failed fetch's log
     assert not (work / "resources/oil/DataTrn.txt").exists()
+
+
+@pytest.mark.pipeline
+def test_data_corrupted_after_a_good_run_stops_the_rerun_with_every_result_intact(tmp_path):
+    """A good quick Table 2 run, then an HTML page written over its input: the rerun fails before
+    any job, naming the file, and every result file is still there with the same bytes."""
+    from nldr.datasets import FILES
+
+    work = tmp_path / "work"
+    proc = run_snakemake(work, f"{R}/tables/table2.csv", "-c", "2", "--configfile", QUICK)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+
+    def results():
+        return {
+            p.relative_to(work): p.read_bytes()
+            for p in (work / "results").rglob("*")
+            if p.is_file() and "logs" not in p.parts
+        }
+
+    before = results()
+    assert any(p.suffix == ".csv" and "runs" in p.parts for p in before)
+    data = work / "resources/oil/DataTrn.txt"
+    data.write_text("<!DOCTYPE html><html><body>rate limited</body></html>\n")
+    proc = run_snakemake(work, f"{R}/tables/table2.csv", "-c", "2", "--configfile", QUICK)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode != 0
+    assert "oil/DataTrn.txt" in out and FILES["oil/DataTrn.txt"].sha256 in out
+    assert "Traceback" not in out
+    assert results() == before

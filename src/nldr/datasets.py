@@ -31,6 +31,7 @@ __all__ = [
     "default_data_dir",
     "fetch",
     "verify",
+    "verify_present",
     "load_oil",
     "MocapSequence",
     "load_mocap",
@@ -109,20 +110,58 @@ def _spec(relpath: str) -> DataFile:
         raise ValueError(f"unknown data file {relpath!r}; known: {sorted(FILES)}") from None
 
 
-def verify(path, relpath: str) -> Path:
-    """Check that ``path`` holds the pinned content of ``relpath``; raise DataError otherwise."""
+def verify(path, relpath: str, *, source=None) -> Path:
+    """Check that ``path`` holds the pinned content of ``relpath``; raise DataError otherwise.
+
+    ``source`` names where the bytes came from (a mirror file or a URL) when ``path`` is a temporary
+    copy: the message then names the source and says to fix it, not the copy (which is deleted).
+    """
     spec, path = _spec(relpath), Path(path)
     if not path.is_file():
         raise DataError(f"{relpath}: file {path} does not exist. {_MIRROR_HINT}")
-    digest = _sha256(path)
+    try:
+        digest = _sha256(path)
+    except OSError as exc:
+        raise DataError(f"{relpath}: cannot read {path} ({exc.strerror or exc}).") from None
     if digest != spec.sha256:
+        where = path if source is None else source
+        fix = (
+            f"Delete it and fetch again from {spec.url} or a mirror."
+            if source is None
+            else f"Replace {source} with the pinned file (source {spec.url})."
+        )
         raise DataError(
-            f"{relpath}: {path} has sha256 {digest}, expected {spec.sha256} "
+            f"{relpath}: {where} has sha256 {digest}, expected {spec.sha256} "
             f"(size {path.stat().st_size} bytes; a truncated download, an HTML error page or a "
-            f"different version gives this). Delete it and fetch again from {spec.url} or a mirror. "
-            f"{_MIRROR_HINT}"
+            f"different version gives this). {fix} {_MIRROR_HINT}"
         )
     return path
+
+
+def verify_present(data_dir) -> list[Path]:
+    """Verify every pinned file already present under ``data_dir``; return their paths.
+
+    The pipeline calls this before it schedules any job, so a data file changed or corrupted after a
+    good run stops the run at once: Snakemake would otherwise rerun every job downstream of the
+    changed file, deleting their (good) outputs first, and each would then fail on the hash.
+
+    Raises
+    ------
+    DataError
+        Naming every present file whose sha256 differs from the pinned one, or that cannot be read.
+    """
+    data_dir, checked, problems = Path(data_dir), [], []
+    for relpath in FILES:
+        path = data_dir / relpath
+        if not path.exists():
+            continue
+        try:
+            checked.append(verify(path, relpath))
+        except DataError as exc:
+            problems.append(str(exc))
+    if problems:
+        raise DataError("\n".join(problems))
+    return checked
 
 
 def fetch(relpath: str, data_dir=None, *, mirror=None) -> Path:
@@ -150,17 +189,22 @@ def fetch(relpath: str, data_dir=None, *, mirror=None) -> Path:
     dest.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.name}.", suffix=".part")
     tmp = Path(tmp_name)
+    source = Path(mirror) / spec.relpath if mirror else spec.url
     try:
         with os.fdopen(fd, "wb") as out:
             if mirror:
-                source = Path(mirror) / spec.relpath
                 if not source.is_file():
                     raise DataError(
                         f"{relpath}: not found in the mirror NLDR_DATA_MIRROR={mirror} (looked for "
                         f"{source}). Put the file there (sha256 {spec.sha256}, source {spec.url})."
                     )
-                with open(source, "rb") as src:
-                    shutil.copyfileobj(src, out)
+                try:
+                    with open(source, "rb") as src:
+                        shutil.copyfileobj(src, out)
+                except OSError as exc:
+                    raise DataError(
+                        f"{relpath}: cannot read the mirror file {source} ({exc.strerror or exc})."
+                    ) from None
             else:
                 try:
                     with urllib.request.urlopen(spec.url, timeout=60) as response:
@@ -169,7 +213,7 @@ def fetch(relpath: str, data_dir=None, *, mirror=None) -> Path:
                     raise DataError(
                         f"{relpath}: download from {spec.url} failed ({exc}). {_MIRROR_HINT}"
                     ) from None
-        verify(tmp, relpath)
+        verify(tmp, relpath, source=source)
         os.chmod(tmp, 0o644)  # mkstemp creates 0600
         os.replace(tmp, dest)
     finally:

@@ -1,4 +1,7 @@
 # Paths of every experiment's files, derived from the config and the registry nldr.experiments.
+from snakemake.exceptions import WorkflowError
+
+from nldr.datasets import DataError, verify_present
 from nldr.experiments import EXPERIMENTS, figure_owner
 
 REPO = Path(workflow.basedir)

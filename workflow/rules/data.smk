@@ -1,5 +1,14 @@
 # Raw data: copied from $NLDR_DATA_MIRROR or downloaded from a pinned URL, then sha256-verified
-# (nldr.datasets.fetch writes to a temporary name and renames only a verified file).
+# (nldr.datasets.fetch writes to a temporary name and renames only a verified file). No retries: a
+# missing or corrupt source, or no network, fails the same way the second time.
+#
+# Files already present are verified before any job is scheduled (nldr.datasets.verify_present):
+# a data file changed after a good run would otherwise make Snakemake rerun, and so first delete the
+# outputs of, every job downstream of it, each of which would then fail on the hash.
+try:
+    verify_present(DATA_DIR)
+except DataError as exc:
+    raise WorkflowError(f"data check failed before any job ran; results are untouched.\n{exc}")
 
 
 rule fetch_data:
@@ -14,6 +23,5 @@ rule fetch_data:
     log:
         f"{RESULTS}/logs/fetch_data/{{relpath}}.log",
     localrule: True
-    retries: 1
     script:
         "../scripts/fetch_data.py"
