@@ -199,10 +199,10 @@ def test_a_frame_with_no_observed_point_stays_finite():
     W2d = np.einsum("fck,fkp->fcp", R, X.reshape(F, 3, P)).reshape(F, 2 * P)
     mask = rng.random((F, P)) > 0.3
     mask[5] = False  # frame 5 shows nothing
+    with pytest.warns(UserWarning, match=r"frames \[5\] have no visible point"):
+        term = OrthographicReprojection(W2d, R, mask)
     tnh = trace_norm_heuristic(W2d, R, mask, tau=1e-2, method="cvxpy")
-    res = minimize_regularized(
-        OrthographicReprojection(W2d, R, mask), tnh.x, gamma=0.1, tau=1e-4, rho0=1e-3, rho_max=10.0
-    )
+    res = minimize_regularized(term, tnh.x, gamma=0.1, tau=1e-4, rho0=1e-3, rho_max=10.0)
     assert _finite(tnh.x, res.x)
 
 
@@ -264,3 +264,52 @@ def test_data_corrupted_after_a_good_run_stops_the_rerun_with_every_result_intac
     assert "oil/DataTrn.txt" in out and FILES["oil/DataTrn.txt"].sha256 in out
     assert "Traceback" not in out
     assert results() == before
+
+
+# --------------------------------------------------------------------------------------------------
+# Library edge cases: a clear ValueError or a warning, never a silent non-finite or empty result
+
+
+def test_huge_data_is_refused_before_the_solver():
+    rng = np.random.default_rng(0)
+    W = rng.standard_normal((20, 4)) * 1e200
+    with pytest.raises(ValueError, match="W has entries up to .* Rescale W"):
+        MaskedLeastSquares(W, np.ones_like(W, dtype=bool))
+    with pytest.raises(ValueError, match="overflow float64.*rescale"):
+        rbf_kernel(W, 1.0)
+
+
+def test_center_kernel_rejects_non_finite_and_non_square():
+    from nldr.kernels import center_kernel
+
+    K = np.eye(4)
+    K[1, 2] = np.nan
+    with pytest.raises(ValueError, match="K contains NaN"):
+        center_kernel(K)
+    with pytest.raises(ValueError, match="square"):
+        center_kernel(np.ones((3, 4)))
+
+
+def test_reprojection_rejects_transposed_shapes_and_empty_visibility():
+    rng = np.random.default_rng(1)
+    F, P = 6, 3  # 3P = 9 != F, so X.T has the same size but not the same shape
+    W2d, R = rng.standard_normal((F, 2 * P)), np.tile(np.eye(3)[:2], (F, 1, 1))
+    term = OrthographicReprojection(W2d, R)
+    X = rng.standard_normal((F, 3 * P))
+    with pytest.raises(ValueError, match=r"X must have shape \(F, 3P\)"):
+        term.gradient(X.T.copy().reshape(3 * P, F))
+    with pytest.raises(ValueError, match="no visible point"):
+        OrthographicReprojection(W2d, R, np.zeros((F, P), dtype=bool))
+    mask = np.ones((F, P), dtype=bool)
+    mask[2] = False
+    with pytest.warns(UserWarning, match=r"frames \[2\] have no visible point"):
+        OrthographicReprojection(W2d, R, mask)
+
+
+def test_robust_kpca_warns_when_tau_removes_every_component():
+    from nldr.robust_kpca import RobustKernelPCA
+
+    X = np.random.default_rng(2).standard_normal((15, 3))
+    with pytest.warns(UserWarning, match="removes every component"):
+        Z = RobustKernelPCA(gamma=0.5, tau=1e6, rho=1.0).fit_transform(X)
+    assert Z.shape == (15, 0)

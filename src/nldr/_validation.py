@@ -52,3 +52,21 @@ def check_symmetric_kernel(K, name: str = "K", *, rtol: float = 1e-8) -> np.ndar
             f"pass (K + K.T) / 2 if the asymmetry is rounding"
         )
     return 0.5 * (K + K.T)
+
+
+def check_magnitude(values: np.ndarray, name: str) -> None:
+    """Refuse data whose sum of squares would overflow float64.
+
+    The solvers square the data (residuals, pairwise distances): entries beyond about
+    sqrt(max float / (4 m)) for m of them overflow to infinity, and the eigensolver then fails far from
+    the cause. The bound holds for residuals and distances of points up to twice the data's range.
+    """
+    if values.size == 0:
+        return
+    largest = float(np.max(np.abs(values)))
+    limit = float(np.sqrt(np.finfo(np.float64).max / (16.0 * values.size)))
+    if largest > limit:
+        raise ValueError(
+            f"{name} has entries up to {largest:.3g} in magnitude; squared errors overflow float64 "
+            f"beyond about {limit:.3g} for {values.size} entries. Rescale {name} (e.g. standardise it)"
+        )

@@ -19,7 +19,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 import scipy.sparse as sp
 
-from ._validation import as_float_matrix
+from ._validation import as_float_matrix, check_magnitude
 
 __all__ = ["DataTerm", "MaskedLeastSquares", "check_start"]
 
@@ -78,6 +78,7 @@ class MaskedLeastSquares:
             raise ValueError(f"mask and W must have the same shape; got {mask.shape} and {W.shape}")
         if not np.all(np.isfinite(W[mask])):
             raise ValueError("W has NaN or infinite values at observed entries (where mask is True)")
+        check_magnitude(W[mask], "W")
         self.W = np.where(mask, W, 0.0)
         self.mask = mask
         self.shape = W.shape

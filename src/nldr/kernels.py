@@ -61,7 +61,13 @@ def rbf_kernel(X, gamma: float, Y=None) -> np.ndarray:
         Y = as_float_matrix(Y, "Y")
         if Y.shape[1] != X.shape[1]:
             raise ValueError(f"X and Y must have the same number of columns; got {X.shape} and {Y.shape}")
-    return np.exp(-gamma * squared_distances(X, Y))
+    D = squared_distances(X, Y)
+    if not np.all(np.isfinite(D)):
+        raise ValueError(
+            f"squared distances between the samples overflow float64 (largest |entry| "
+            f"{max(np.abs(X).max(), 0 if Y is None else np.abs(Y).max()):.3g}); rescale the data"
+        )
+    return np.exp(-gamma * D)
 
 
 def rbf_kernel_vjp(X: np.ndarray, K: np.ndarray, G: np.ndarray, gamma: float) -> np.ndarray:
@@ -91,7 +97,13 @@ def rbf_kernel_vjp(X: np.ndarray, K: np.ndarray, G: np.ndarray, gamma: float) ->
 
 
 def center_kernel(K: np.ndarray) -> np.ndarray:
-    """Double-centred kernel H K H with H = I - 11^T / n (the Gram matrix of mean-removed features)."""
+    """Double-centred kernel H K H with H = I - 11^T / n (the Gram matrix of mean-removed features).
+
+    ``K`` is a finite square (n, n) array; a ValueError names any other input.
+    """
+    K = as_float_matrix(K, "K")
+    if K.shape[0] != K.shape[1]:
+        raise ValueError(f"K must be a square (n, n) kernel matrix; got shape {K.shape}")
     row = K.mean(axis=0)
     total = row.mean()
     return K - row[None, :] - row[:, None] + total

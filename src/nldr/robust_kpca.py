@@ -13,6 +13,7 @@ inner functions this module shares with :mod:`nldr.regularizer`.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -228,6 +229,14 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         Kc = center_kernel(K) if self.center else K
         lam, U, l = spectrum(Kc, tau, rho, eigensolver)
         k = int(np.count_nonzero(l))
+        if k == 0:
+            warnings.warn(
+                f"tau = {tau:g} with rho = {rho:g} removes every component (every kernel eigenvalue "
+                f"is below the threshold {rank_penalty_threshold(tau, rho):.3g}): transform returns "
+                "(n, 0) arrays. Lower tau",
+                UserWarning,
+                stacklevel=2,
+            )
         self.n_components_ = k
         self.eigenvalues_ = lam[:k]
         self.singular_values_ = l[:k]

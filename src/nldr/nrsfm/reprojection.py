@@ -12,10 +12,12 @@ and the camera/shape alternation.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import scipy.sparse as sp
 
-from .._validation import as_float_matrix
+from .._validation import as_float_matrix, check_magnitude
 
 __all__ = [
     "OrthographicReprojection",
@@ -93,6 +95,17 @@ class OrthographicReprojection:
         mask2 = np.concatenate([mask, mask], axis=1)  # (F, 2P), same layout as W2d
         if not np.all(np.isfinite(W2d[mask2])):
             raise ValueError("W2d has NaN or infinite values at observed entries (where mask is True)")
+        if not mask.any():
+            raise ValueError("mask has no visible point: there is nothing to reconstruct from")
+        check_magnitude(W2d[mask2], "W2d")
+        empty = np.flatnonzero(~mask.any(axis=1))
+        if empty.size:
+            warnings.warn(
+                f"frames {empty.tolist()[:10]}{' ...' if empty.size > 10 else ''} have no visible point: "
+                "the data term does not constrain their shapes (only a regularizer does)",
+                UserWarning,
+                stacklevel=2,
+            )
         self.n_frames, self.n_points = F, P
         self.shape = (F, 3 * P)
         self.W = np.where(mask2, W2d, 0.0)
@@ -122,7 +135,12 @@ class OrthographicReprojection:
     def project(self, X: np.ndarray) -> np.ndarray:
         """Image tracks (F, 2P) of shapes X (F, 3P) under the cameras, all points (mask ignored)."""
         F, P = self.n_frames, self.n_points
-        return np.einsum("fck,fkp->fcp", self.R, X.reshape(F, 3, P)).reshape(F, 2 * P)
+        return np.einsum("fck,fkp->fcp", self.R, self._check_X(X).reshape(F, 3, P)).reshape(F, 2 * P)
+
+    def _check_X(self, X) -> np.ndarray:
+        if np.shape(X) != self.shape:
+            raise ValueError(f"X must have shape (F, 3P) = {self.shape} (shapes as rows); got {np.shape(X)}")
+        return X
 
     def residuals(self, X: np.ndarray) -> np.ndarray:
         """Observed W minus projection, shape (n_residuals,), in image length units."""
