@@ -313,3 +313,20 @@ def test_robust_kpca_warns_when_tau_removes_every_component():
     with pytest.warns(UserWarning, match="removes every component"):
         Z = RobustKernelPCA(gamma=0.5, tau=1e6, rho=1.0).fit_transform(X)
     assert Z.shape == (15, 0)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_observed_data_is_refused_by_every_data_term(bad):
+    """NaN is allowed where unobserved (it is ignored) and refused where observed, naming the input."""
+    rng = np.random.default_rng(3)
+    W, mask = rng.standard_normal((6, 4)), np.ones((6, 4), dtype=bool)
+    mask[0, 0] = False
+    W[0, 0] = np.nan
+    MaskedLeastSquares(W, mask)  # unobserved NaN: fine
+    W[1, 2] = bad
+    with pytest.raises(ValueError, match="W has NaN or infinite values at observed entries"):
+        MaskedLeastSquares(W, mask)
+    W2d, R = rng.standard_normal((4, 6)), np.tile(np.eye(3)[:2], (4, 1, 1))
+    W2d[2, 1] = bad
+    with pytest.raises(ValueError, match="W2d has NaN or infinite values at observed entries"):
+        OrthographicReprojection(W2d, R)
