@@ -70,32 +70,57 @@ def test_bad_config_is_rejected_naming_the_key_before_any_job(tmp_path, path, va
 # Interruption: a run killed inside a heavy job, started again, gives the tables of a clean run
 
 
-@pytest.mark.pipeline
-def test_run_killed_in_a_heavy_job_finishes_with_the_same_table(tmp_path):
-    targets = [f"{R}/tables/table3.csv", "-c", "1", "--configfile", QUICK]
-    interrupted, clean = tmp_path / "interrupted", tmp_path / "clean"
-    cmd = [*SNAKEMAKE, "-d", str(interrupted), *targets]
+TABLE3 = [f"{R}/tables/table3.csv", "-c", "1", "--configfile", QUICK]
+
+
+@pytest.fixture(scope="module")
+def clean_table3(tmp_path_factory):
+    """Table 3's files from an uninterrupted quick run."""
+    clean = tmp_path_factory.mktemp("clean")
+    proc = subprocess.run([*SNAKEMAKE, "-d", str(clean), *TABLE3], cwd=REPO, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    names = ("table3.csv", "table3.md", "table3.tex")
+    return {name: (clean / R / "tables" / name).read_bytes() for name in names}
+
+
+def _start_and_stop_in_a_job(workdir, sig):
+    """Start the Table 3 run, wait until an NRSfM job is inside its solver, send ``sig``, wait."""
+    cmd = [*SNAKEMAKE, "-d", str(workdir), *TABLE3]
     proc = subprocess.Popen(
         cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
     )
-    logs = interrupted / R / "logs/run/table3"
+    logs = workdir / R / "logs/run/table3"
+    started = {p.name for p in logs.glob("*.log")} if logs.is_dir() else set()
     deadline = time.monotonic() + 120
     try:
-        # wait until the first NRSfM job has started and is inside its solver
         while time.monotonic() < deadline and not any(
-            "e3d=" in p.read_text() for p in logs.glob("*.log") if p.is_file()
+            "e3d=" in p.read_text() for p in logs.glob("*.log") if p.is_file() and p.name not in started
         ):
             assert proc.poll() is None, "the run ended before it could be interrupted"
             time.sleep(0.2)
         assert time.monotonic() < deadline, "no table3 job started within 2 minutes"
     finally:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
-    runs = interrupted / R / "runs/table3"
-    done = {p.name for p in runs.glob("*.csv")}
-    assert len(done) < 2 * len(quick_config()["table3"]["sequences"])  # it really was cut short
-    assert not (interrupted / R / "tables/table3.csv").exists()
+        if sig == signal.SIGKILL:
+            os.killpg(proc.pid, sig)  # the machine dies: Snakemake and its jobs at once
+        else:
+            os.kill(proc.pid, sig)  # Ctrl-C or a scheduler's TERM: Snakemake itself is told
+        proc.wait(timeout=120)
+    return cmd
 
+
+def _assert_cut_short(workdir):
+    done = {p.name for p in (workdir / R / "runs/table3").glob("*.csv")}
+    assert len(done) < 2 * len(quick_config()["table3"]["sequences"])  # it really was cut short
+    assert not (workdir / R / "tables/table3.csv").exists()
+    partial = [p for p in (workdir / R).rglob("*") if p.is_file() and p.name.startswith(".")]
+    assert not partial, partial  # no temporary file left behind
+
+
+@pytest.mark.pipeline
+def test_run_killed_in_a_heavy_job_finishes_with_the_same_table(tmp_path, clean_table3):
+    interrupted = tmp_path / "interrupted"
+    cmd = _start_and_stop_in_a_job(interrupted, signal.SIGKILL)
+    _assert_cut_short(interrupted)
     # SIGKILL leaves Snakemake's lock behind: the next run says so and names the fix
     locked = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
     assert locked.returncode != 0 and "--unlock" in locked.stdout + locked.stderr
@@ -103,13 +128,23 @@ def test_run_killed_in_a_heavy_job_finishes_with_the_same_table(tmp_path):
     assert unlock.returncode == 0
     again = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
     assert again.returncode == 0, again.stderr[-3000:]
-    reference = subprocess.run(
-        [*SNAKEMAKE, "-d", str(clean), *targets], cwd=REPO, capture_output=True, text=True
-    )
-    assert reference.returncode == 0, reference.stderr[-3000:]
-    for name in ("table3.csv", "table3.md", "table3.tex"):
-        first = (interrupted / R / "tables" / name).read_bytes()
-        assert first == (clean / R / "tables" / name).read_bytes(), name
+    for name, clean in clean_table3.items():
+        assert (interrupted / R / "tables" / name).read_bytes() == clean, name
+
+
+@pytest.mark.pipeline
+def test_run_interrupted_by_sigint_then_sigterm_finishes_with_the_same_table(tmp_path, clean_table3):
+    """Ctrl-C, then a scheduler's SIGTERM in the resumed run: Snakemake stops its jobs, removes their
+    incomplete outputs and releases its lock, so the next plain run finishes the table."""
+    interrupted = tmp_path / "interrupted"
+    cmd = _start_and_stop_in_a_job(interrupted, signal.SIGINT)
+    _assert_cut_short(interrupted)
+    _start_and_stop_in_a_job(interrupted, signal.SIGTERM)
+    _assert_cut_short(interrupted)
+    again = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr[-3000:]  # no --unlock needed
+    for name, clean in clean_table3.items():
+        assert (interrupted / R / "tables" / name).read_bytes() == clean, name
 
 
 # --------------------------------------------------------------------------------------------------
