@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 CORES ?= all
 
-.PHONY: setup reproduce quick scale test lint dryrun bench clean
+.PHONY: setup reproduce quick scale test mutants lint dryrun bench clean
 
 $(BIN)/.installed: pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -27,6 +27,9 @@ scale: setup  ## extra targets beyond the paper: Table 2 on all 1000 oil rows, T
 
 test: setup  ## the whole test suite (pipeline tests use config/quick.yaml)
 	$(BIN)/python -m pytest
+
+mutants: setup  ## put known faults into a scratch copy one at a time; report which the tests catch
+	$(BIN)/python tests/mutants.py
 
 lint: setup
 	$(BIN)/ruff check .

@@ -392,3 +392,20 @@ def test_closed_form_partial_and_full_agree():
     with pytest.raises(ValueError, match="eigensolver"):
         S = K[:, :3]
         minimize_regularized(MaskedLeastSquares(S, S > 0.5), S, gamma=1.0, tau=1.0, eigensolver=1)
+
+
+def test_the_isolation_guard_is_on_by_default():
+    """Without arguments the solver starts at rho0 >= tau sqrt(27/8) (docs/REPRODUCTION.md#escape):
+    the default run equals the guarded one, and differs from the unguarded one when rho0 = 1 is below
+    that floor (tau = 10: floor 18.4)."""
+    rng = np.random.default_rng(11)
+    X = rng.random((30, 5))
+    mask = rng.random(X.shape) > 0.3
+    term = MaskedLeastSquares(np.where(mask, X, np.nan), mask)
+    S0 = np.where(mask, X, np.nanmean(np.where(mask, X, np.nan), axis=0))
+    options = dict(gamma=2.0, tau=10.0, rho0=1.0, rho_max=1e3, max_inner=200)
+    default = minimize_regularized(term, S0, **options)
+    guarded = minimize_regularized(term, S0, isolation_guard=True, **options)
+    unguarded = minimize_regularized(term, S0, isolation_guard=False, **options)
+    np.testing.assert_array_equal(default.x, guarded.x)
+    assert not np.array_equal(default.x, unguarded.x)

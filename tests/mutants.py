@@ -1,0 +1,151 @@
+"""Put known faults into a copy of the project one at a time and report which the test suite catches.
+
+Each mutant is a one-line change that a careless edit could make (issue 19's list, and more). For each,
+the tracked files are copied to a scratch folder, the change is applied (it must match exactly once),
+and the tests that guard that behaviour run there (``-x``, stopping at the first failure). A mutant is
+*caught* when those tests fail. Run with ``make mutants`` (a few minutes; the pipeline mutants run
+Snakemake on the quick protocol). Not collected by pytest (the file name does not start with test_).
+
+Usage::
+
+    python tests/mutants.py            # every mutant
+    python tests/mutants.py atomic     # those whose name contains "atomic"
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@dataclass(frozen=True)
+class Mutant:
+    name: str
+    path: str
+    old: str
+    new: str
+    tests: tuple[str, ...]
+
+
+MUTANTS = [
+    Mutant(
+        "atomic writes: CSV written in place",
+        "workflow/scripts/_pipeline.py",
+        '    with atomic_path(path) as tmp:\n        frame.to_csv(tmp, index=False, float_format="%.10g")',
+        '    frame.to_csv(path, index=False, float_format="%.10g")',
+        ("tests/test_atomic_writes.py",),
+    ),
+    Mutant(
+        "atomic writes: a job script bypasses the helpers",
+        "workflow/scripts/run_job.py",
+        "write_csv(sm.output.table, output.rows)",
+        "output.rows.to_csv(sm.output.table, index=False)",
+        ("tests/test_atomic_writes.py",),
+    ),
+    Mutant(
+        "fetch trusts a file already in place",
+        "src/nldr/datasets.py",
+        "    if dest.is_file():\n        return verify(dest, relpath)",
+        "    if dest.is_file():\n        return dest",
+        ("tests/test_datasets.py",),
+    ),
+    Mutant(
+        "data not verified before the jobs",
+        "workflow/rules/data.smk",
+        "    verify_present(DATA_DIR)",
+        "    pass",
+        ("tests/test_reliability.py::test_data_corrupted_after_a_good_run_stops_the_rerun_with_every_result_intact",),
+    ),
+    Mutant(
+        "MaskedLeastSquares accepts non-finite observed data",
+        "src/nldr/data_terms.py",
+        "        if not np.all(np.isfinite(W[mask])):",
+        "        if False:",
+        ("tests/test_reliability.py::test_non_finite_observed_data_is_refused_by_every_data_term",),
+    ),
+    Mutant(
+        "schema: free-form keys under methods.Ours",
+        "workflow/schemas/config.schema.yaml",
+        "          Ours:\n            type: object\n            additionalProperties: false",
+        "          Ours:\n            type: object",
+        ("tests/test_schema.py",),
+    ),
+    Mutant(
+        "isolation guard off by default",
+        "src/nldr/regularizer.py",
+        "    isolation_guard: bool = True,",
+        "    isolation_guard: bool = False,",
+        ("tests/test_regularizer.py::test_the_isolation_guard_is_on_by_default",),
+    ),
+    Mutant(
+        "sample sd replaced by population sd",
+        "src/nldr/experiments/base.py",
+        "SD_DDOF = 1",
+        "SD_DDOF = 0",
+        ("tests/test_experiments.py",),
+    ),
+]
+
+
+def _copy_tracked(dest: Path) -> None:
+    files = subprocess.run(
+        ["git", "-C", str(REPO), "ls-files", "-z"], capture_output=True, check=True
+    ).stdout.decode().split("\0")
+    for rel in filter(None, files):
+        src = REPO / rel
+        if src.is_file():
+            (dest / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / rel)
+
+
+def run(mutant: Mutant) -> tuple[bool, float, str]:
+    """Apply ``mutant`` in a scratch copy and run its tests; (caught, seconds, last line of output).
+
+    Caught means a test failed (pytest's exit code 1); any other failure of the run is an error of the
+    mutant's definition, not a catch."""
+    with tempfile.TemporaryDirectory(prefix="nldr-mutant-") as tmp:
+        work = Path(tmp)
+        _copy_tracked(work)
+        target = work / mutant.path
+        text = target.read_text()
+        if text.count(mutant.old) != 1:
+            raise SystemExit(f"mutant {mutant.name!r}: its text occurs {text.count(mutant.old)} times in {mutant.path}")
+        target.write_text(text.replace(mutant.old, mutant.new))
+        env = {**os.environ, "PYTHONPATH": str(work / "src"), "MPLBACKEND": "Agg"}
+        start = time.perf_counter()
+        proc = subprocess.run(
+            [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *mutant.tests],
+            cwd=work,
+            env=env,
+            capture_output=True,
+            text=True,
+        )
+        lines = [line for line in proc.stdout.splitlines() if line.strip()]
+        last = lines[-1] if lines else proc.stderr[-200:]
+        if proc.returncode not in (0, 1):  # 2-5: interrupted, internal error, usage error, no tests
+            raise SystemExit(f"mutant {mutant.name!r}: the tests did not run properly ({last})")
+        return proc.returncode == 1, time.perf_counter() - start, last
+
+
+def main(argv: list[str]) -> int:
+    chosen = [m for m in MUTANTS if not argv or any(a in m.name for a in argv)]
+    missed = 0
+    print(f"{'mutant':55s} {'outcome':8s} {'seconds':>7s}  tests' last line")
+    for mutant in chosen:
+        caught, seconds, last = run(mutant)
+        missed += not caught
+        print(f"{mutant.name:55s} {'caught' if caught else 'MISSED':8s} {seconds:7.1f}  {last}", flush=True)
+    print(f"{len(chosen) - missed} of {len(chosen)} mutants caught")
+    return 1 if missed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
