@@ -62,7 +62,9 @@ MUTANTS = [
         "workflow/rules/data.smk",
         "    verify_present(DATA_DIR)",
         "    pass",
-        ("tests/test_reliability.py::test_data_corrupted_after_a_good_run_stops_the_rerun_with_every_result_intact",),
+        (
+            "tests/test_reliability.py::test_data_corrupted_after_a_good_run_stops_the_rerun_with_every_result_intact",
+        ),
     ),
     Mutant(
         "MaskedLeastSquares accepts non-finite observed data",
@@ -96,9 +98,11 @@ MUTANTS = [
 
 
 def _copy_tracked(dest: Path) -> None:
-    files = subprocess.run(
-        ["git", "-C", str(REPO), "ls-files", "-z"], capture_output=True, check=True
-    ).stdout.decode().split("\0")
+    files = (
+        subprocess.run(["git", "-C", str(REPO), "ls-files", "-z"], capture_output=True, check=True)
+        .stdout.decode()
+        .split("\0")
+    )
     for rel in filter(None, files):
         src = REPO / rel
         if src.is_file():
@@ -117,7 +121,9 @@ def run(mutant: Mutant) -> tuple[bool, float, str]:
         target = work / mutant.path
         text = target.read_text()
         if text.count(mutant.old) != 1:
-            raise SystemExit(f"mutant {mutant.name!r}: its text occurs {text.count(mutant.old)} times in {mutant.path}")
+            raise SystemExit(
+                f"mutant {mutant.name!r}: its text occurs {text.count(mutant.old)} times in {mutant.path}"
+            )
         target.write_text(text.replace(mutant.old, mutant.new))
         env = {**os.environ, "PYTHONPATH": str(work / "src"), "MPLBACKEND": "Agg"}
         start = time.perf_counter()
