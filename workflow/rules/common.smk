@@ -9,7 +9,18 @@ DATA_DIR = config["data"]["dir"]
 RESULTS = config["results"]  # config.yaml: results; quick.yaml: results/quick (never the same files)
 PAPER = [e for e in EXPERIMENTS.values() if e.in_paper]
 NOTEBOOKS = {e.notebook: e for e in EXPERIMENTS.values() if e.notebook}
-JOBS = {name: {job.id: job for job in e.jobs(config)} for name, e in EXPERIMENTS.items()}  # built once
+
+
+def _checked_jobs(experiment):
+    """The experiment's jobs after its cross-field checks (Experiment.check): a bad value stops the
+    run here, before any job, naming its config key."""
+    try:
+        return {job.id: job for job in experiment.check(config)}
+    except ValueError as exc:
+        raise WorkflowError(f"invalid config: {exc}") from None
+
+
+JOBS = {name: _checked_jobs(e) for name, e in EXPERIMENTS.items()}  # built once
 
 
 def experiment_of(wildcards):

@@ -13,6 +13,7 @@ No file I/O happens here apart from loading the raw data through :mod:`nldr.data
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -28,6 +29,8 @@ __all__ = ["Job", "JobOutput", "Experiment", "summary_stats", "SD_DDOF"]
 #: Standard deviations over replicates (noise draws, masks, seeds) in every table are sample
 #: standard deviations (``ddof=1``); with one replicate the spread is NaN, shown as no "± sd".
 SD_DDOF = 1
+#: what a job id may contain (it names files, and the workflow's wildcard accepts exactly this)
+_JOB_ID = re.compile(r"[A-Za-z0-9_.+-]+")
 
 
 def summary_stats(values, prefix: str, *, extremes: bool = False) -> dict[str, float]:
@@ -138,6 +141,38 @@ class Experiment:
     def jobs(self, config: Mapping) -> list[Job]:
         """Every job the config declares, in a stable order."""
         raise NotImplementedError
+
+    def check(self, config: Mapping) -> list[Job]:
+        """Cross-field checks the schema cannot express; returns :meth:`jobs` when they pass.
+
+        Every job id must be a distinct file name of letters, digits and ``_.+-``, and every float
+        parameter must survive its ``:g`` formatting (ids and table settings print values that way):
+        0.2000001 would print as 0.2 and two values that print alike would share one file. Subclasses
+        add their own checks and call this one.
+
+        Raises
+        ------
+        ValueError
+            Naming the config key (``experiment.key``) and the offending value.
+        """
+        jobs = self.jobs(config)
+        for job in jobs:
+            for key, value in job.params.items():
+                if isinstance(value, float) and float(f"{value:g}") != value:
+                    raise ValueError(
+                        f"{self.name}.{key}: {value!r} prints as {value:g} in file names and tables; "
+                        "use at most 6 significant digits"
+                    )
+            if not _JOB_ID.fullmatch(job.id):
+                raise ValueError(
+                    f"{self.name}: job id {job.id!r} is not a plain file name (letters, digits, _.+-)"
+                )
+        seen = set()
+        for job in jobs:
+            if job.id in seen:
+                raise ValueError(f"{self.name}: two jobs share the id {job.id!r}; a value is listed twice")
+            seen.add(job.id)
+        return jobs
 
     def job(self, config: Mapping, job_id: str) -> Job:
         """The job named ``job_id``; ValueError naming the known ids otherwise."""

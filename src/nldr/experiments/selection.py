@@ -54,6 +54,14 @@ class Selection(Table2):
     #: the paper's Table 2 "Ours" beside our run at the paper's values
     paper = [(s, PAPER, m, v) for s, method, m, v in paper_numbers.TABLE2 if method == "Ours"]
 
+    def check(self, config):
+        grid = self.settings(config)["grid"]["log10_tau"]
+        if grid["min"] > grid["max"]:
+            raise ValueError(
+                f"selection.grid.log10_tau: min must not exceed max; got {grid['min']} > {grid['max']}"
+            )
+        return super().check(config)
+
     def resources(self, config, job):
         return {"mem_mb": 1000, "runtime": 30}
 

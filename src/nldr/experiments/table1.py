@@ -216,6 +216,12 @@ class Table1(Experiment):
         )
     }
 
+    def check(self, config):
+        tau = self.settings(config)["tau"]
+        if not tau["min"] < tau["max"]:
+            raise ValueError(f"table1.tau: min must be below max; got min={tau['min']}, max={tau['max']}")
+        return super().check(config)
+
     def jobs(self, config):
         s = self.settings(config)
         return [

@@ -286,6 +286,12 @@ class Table4(MocapExperiment):
     paper = paper_numbers.TABLE4
     notebook = "table4_nrsfm_cameras"
 
+    def check(self, config):
+        low, high = self.settings(config)["tnh"]["log10_tau_bounds"]
+        if not low < high:
+            raise ValueError(f"table4.tnh.log10_tau_bounds: [low, high] with low < high; got [{low}, {high}]")
+        return super().check(config)
+
     def resources(self, config, job):
         return {"mem_mb": 2000, "runtime": 60}
 
