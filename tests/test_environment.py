@@ -70,3 +70,10 @@ def test_pipeline_conda_env_has_the_constraints_versions():
         assert spec.operator == "==" and spec.version == pins[req.name.lower()], line
     names = {Requirement(line).name for line in pip}
     assert {Requirement(r).name for r in PYPROJECT["project"]["dependencies"]} <= names
+
+
+def test_citation_file_names_this_version_and_the_paper():
+    cff = yaml.safe_load((REPO / "CITATION.cff").read_text())
+    assert cff["version"] == nldr.__version__
+    assert "1603.05015" in cff["preferred-citation"]["url"]
+    assert (REPO / "LICENSE").read_text().startswith("MIT License")

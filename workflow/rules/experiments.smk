@@ -19,6 +19,7 @@ rule run_job:
     resources:
         mem_mb=lambda w: experiment_of(w).resources(config, job_of(w))["mem_mb"],
         runtime=lambda w: experiment_of(w).resources(config, job_of(w))["runtime"],
+        cpus_per_task=lambda w, threads: threads,  # cluster executors (SLURM) request the job's threads
     conda:
         "../envs/nldr.yaml"
     log:

@@ -13,6 +13,11 @@ import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
+try:  # the installed package (make setup), or else this checkout's own src/ (e.g. snakemake --use-conda)
+    import nldr  # noqa: F401
+except ImportError:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "src"))
+
 
 def setup(snakemake) -> logging.Logger:
     """Send log records to the rule's log file and pin BLAS threads to the rule's ``threads``."""
