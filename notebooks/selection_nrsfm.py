@@ -87,8 +87,9 @@ pd.concat(checks, axis=1).round(3) if checks else "no pair to compare in this ru
 
 # %% [markdown]
 # ## What CV chose, and what it cost
-# `solves` is the selection's CPU time divided by that of one solve at the chosen values (the refit:
-# one kernel solve, one TNH alternation, or one kernel/camera alternation).
+# `solves` is the selection's CPU time divided by that of one solve: for TNH the refit (one
+# alternation at the chosen τ, one evaluation of the oracle's search); for the kernel method the
+# mean of its two paper-value solves on the same mask (Table 4: kernel/camera alternations).
 
 # %%
 all_runs = pd.concat([pd.read_csv(p) for p in run_paths], ignore_index=True)
