@@ -285,7 +285,8 @@ def test_selection_nrsfm_target_keeps_cv_blind_and_gathers_the_oracle(quick_run)
     # oracle rows are Table 4's own
     table3 = pd.concat(pd.read_csv(p) for p in (quick_run / R / "runs/table3").glob("*.csv"))
     key = ["sequence", "missing_fraction", "seed", "method"]
-    ours = runs[runs["protocol"] == "table3"].merge(table3, on=key, suffixes=("", "_table3"))
+    ours = runs[runs["protocol"] == "table3"].astype({"missing_fraction": float})
+    ours = ours.merge(table3.astype({"missing_fraction": float}), on=key, suffixes=("", "_table3"))
     assert len(ours) == 2 * len(runs[(runs["protocol"] == "table3") & (runs["method"] == "Kernel (CV)")])
     np.testing.assert_array_equal(ours["e3d"], ours["e3d_table3"])
     table4 = pd.concat(pd.read_csv(p) for p in (quick_run / R / "runs/table4").glob("*.csv"))
