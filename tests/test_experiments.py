@@ -86,6 +86,18 @@ def test_jobs_follow_the_config(config):
     assert settings["step"] == config["table3_full"]["step"] and settings["tau"] == t3["tau"]
     # enumerating keys are not job settings: adding a seed reruns no existing job
     assert "n_masks" not in EXPERIMENTS["table2"].job_settings(config)
+    # selection_nrsfm: per protocol, one full-data job and n_seeds masks per sequence, on that
+    # table's masks (its seeds) and with that table's solver settings
+    s = config["selection_nrsfm"]
+    jobs = EXPERIMENTS["selection_nrsfm"].jobs(config)
+    assert len(jobs) == sum(len(s["sequences"]) * (1 + s["n_seeds"][p]) for p in s["protocols"])
+    for job in jobs:
+        t = config[job.params["protocol"]]
+        assert job.params["seed"] in range(
+            t["seed"], t["seed"] + max(1, s["n_seeds"][job.params["protocol"]])
+        )
+    settings = EXPERIMENTS["selection_nrsfm"].job_settings(config)
+    assert settings["table3"]["tau"] == t3["tau"] and "sequences" not in settings["table3"]
 
 
 def test_unknown_names_are_reported_with_the_known_ones():

@@ -259,3 +259,42 @@ def test_selection_target_keeps_cv_blind_and_labels_the_oracle(quick_run):
         assert np.isclose(taus, by.loc["Ours (CV)", "tau"], rtol=1e-12).any()
         assert by.loc["Ours (oracle grid point)", "sse"] <= by.loc["Ours (CV)", "sse"] * (1 + 1e-12)
     assert (quick_run / R / "notebooks/selection.ipynb").is_file()
+
+
+@pytest.mark.pipeline
+def test_selection_nrsfm_target_keeps_cv_blind_and_gathers_the_oracle(quick_run):
+    proc = run_snakemake(quick_run, "selection_nrsfm", "-c", "2", "--configfile", str(QUICK))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    table = pd.read_csv(quick_run / R / "tables/selection_nrsfm.csv")
+    assert list(table.columns) == TABLE_COLUMNS
+    methods = set(table["method"])
+    assert {"Kernel (CV)", "TNH (CV tau)", "Kernel (CV) after TNH (CV tau)", "TNH (oracle tau*)"} <= methods
+    runs = pd.concat(pd.read_csv(p) for p in (quick_run / R / "runs/selection_nrsfm").glob("*.csv"))
+    s = quick_config()["selection_nrsfm"]
+    g = s["tnh_grid"]["log10_tau"]
+    tnh = runs[runs["method"] == "TNH (CV tau)"]
+    assert (
+        np.isclose(np.logspace(g["min"], g["max"], g["num"])[:, None], tnh["tau"].to_numpy())
+        .any(axis=0)
+        .all()
+    )
+    kernel = runs[runs["method"].str.startswith("Kernel (CV)")]
+    assert kernel["tau"].isin(s["kernel_grid"]["taus"]).all()
+    assert kernel["width_multiple"].isin(s["kernel_grid"]["width_multiples"]).all()
+    # the paper-value rows are Table 3's runs on the same masks (same calls, same bits), and the
+    # oracle rows are Table 4's own
+    table3 = pd.concat(pd.read_csv(p) for p in (quick_run / R / "runs/table3").glob("*.csv"))
+    key = ["sequence", "missing_fraction", "seed", "method"]
+    ours = runs[runs["protocol"] == "table3"].astype({"missing_fraction": float})
+    ours = ours.merge(table3.astype({"missing_fraction": float}), on=key, suffixes=("", "_table3"))
+    assert len(ours) == 2 * len(runs[(runs["protocol"] == "table3") & (runs["method"] == "Kernel (CV)")])
+    np.testing.assert_array_equal(ours["e3d"], ours["e3d_table3"])
+    table4 = pd.concat(pd.read_csv(p) for p in (quick_run / R / "runs/table4").glob("*.csv"))
+    oracle = table[(table["method"] == "TNH (oracle tau*)") & (table["metric"] == "e3d")]
+    for seq in s["sequences"]:
+        row = oracle[oracle["setting"] == f"Table 4 {seq.capitalize()} full"]
+        expected = table4[
+            (table4["sequence"] == seq) & (table4["missing_fraction"] == 0) & (table4["method"] == "TNH")
+        ]
+        assert row["value"].iloc[0] == expected["e3d"].iloc[0]
+    assert (quick_run / R / "notebooks/selection_nrsfm.ipynb").is_file()

@@ -25,6 +25,7 @@ _REGISTRY = {
     "table2_full": ("table2", "Table2Full"),
     "table3_full": ("table3", "Table3Full"),
     "selection": ("selection", "Selection"),
+    "selection_nrsfm": ("selection_nrsfm", "SelectionNRSfM"),
 }
 _INSTANCES: dict[str, Experiment] = {}
 

@@ -11,6 +11,10 @@ Unknown cameras (Table 4): :func:`initialize_cameras` (rigid factorisation,
 (:mod:`nldr.nrsfm.camera_refinement`, :mod:`nldr.nrsfm.rotations`); evaluation up to the global gauge
 by :func:`e3d` (``align=True``) and :func:`camera_error`.
 
+Parameters from the tracks alone (:mod:`nldr.nrsfm.selection`): :func:`select_tnh_tau` and
+:func:`select_kernel` choose TNH's tau and the kernel method's tau and width by hold-out
+reprojection error on hidden 2D points (:func:`visibility_folds`), never by the 3D ground truth.
+
 Shapes are samples as rows, X (F, 3P); image tracks W (F, 2P); cameras R (F, 2, 3); visibility
 masks (F, P). See :mod:`nldr.nrsfm.layout` for conversions from the benchmark's stacked matrices.
 Every solver result derives from :class:`nldr.result.SolverResult` (``x``, ``fun``, ``success``,
@@ -36,6 +40,15 @@ from .metrics import (
     procrustes_rotation,
 )
 from .reprojection import OrthographicReprojection
+from .selection import (
+    KernelSelection,
+    TNHTauSelection,
+    holdout_reprojection_error,
+    kernel_camera_alternation,
+    select_kernel,
+    select_tnh_tau,
+    visibility_folds,
+)
 from .tnh import TNHResult, TNHSolveError, trace_norm_heuristic
 from .unknown_cameras import TauSearchResult, tnh_with_camera_refinement, tune_tau
 
@@ -62,4 +75,11 @@ __all__ = [
     "tnh_with_camera_refinement",
     "tune_tau",
     "TauSearchResult",
+    "visibility_folds",
+    "holdout_reprojection_error",
+    "select_tnh_tau",
+    "TNHTauSelection",
+    "select_kernel",
+    "KernelSelection",
+    "kernel_camera_alternation",
 ]

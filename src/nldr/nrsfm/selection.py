@@ -1,0 +1,530 @@
+"""Choosing NRSfM parameters from the image tracks alone: hold-out cross-validation of 2D points.
+
+The paper fixes the kernel method's tau (1e-4) and width (the d_max / d_med rules) by hand, and
+tunes the Table 4 TNH baseline's tau on the 3D error against ground truth (an oracle). Without
+ground truth, the honest score of a setting is how well it predicts image points it did not see:
+each fold hides a random share of the *observed* 2D points (a point in a frame is hidden with both
+its image coordinates), the method reconstructs from the rest, and the fold's score is the mean
+squared reprojection error of the hidden points, ``mean ||w_f(x_j) - R_f s_f(x_j)||^2`` over the
+hidden (f, j), with the frame's camera R_f and the reconstructed 3D point s_f(x_j) (squared unit of
+the tracks). The score is invariant to the global gauge (R_f Q, Q^T s), so estimated cameras need no
+alignment. The candidate with the smallest mean score over the folds wins and is refitted on every
+observed point. Nothing here sees the 3D ground truth.
+
+- :func:`visibility_folds`: the hidden points of each fold (same seed, same folds).
+- :func:`select_tnh_tau`: TNH's tau with cameras estimated (Table 4's pipeline: rigid factorisation,
+  then TNH alternating with the camera LM, every tau from the rigid cameras, as the oracle search of
+  :func:`~nldr.nrsfm.unknown_cameras.tune_tau` does). Each fold re-estimates the rigid cameras from
+  its own training points.
+- :func:`select_kernel`: the kernel regularizer's tau and width (a multiple of the paper's d_med or
+  d_max rule, computed on the start shapes). With known cameras (Table 3) every fold starts from the
+  exact-fit TNH of its training points; after :func:`select_tnh_tau` (Table 4) every fold starts from
+  that fold's TNH at the selected tau, and the refit alternates the kernel shape step with the camera
+  LM from the selected TNH, as Table 4's kernel stage does. The fold solves keep the fold's TNH
+  cameras fixed: Table 4's kernel stage moves the cameras by less than 0.01 degrees
+  (docs/REPRODUCTION.md#table-4-tnh), so refining them in every fold would only multiply the cost.
+
+Cost. The kernel candidates of one (fold, width) pair are solved along tau from the smallest up, each
+after the first warm-started from its neighbour with the last penalty stage only (the argument of
+:mod:`nldr.model_selection`); ``warm_start=False`` solves each from the fold's start with the full
+schedule. TNH's taus are always cold starts from the rigid cameras (a continuation in tau lands in a
+different basin, docs/REPRODUCTION.md#table-4-tnh). Folds run in parallel with ``n_jobs``.
+
+Layouts as in :mod:`nldr.nrsfm.layout`: tracks W2d (F, 2P), shapes X (F, 3P), cameras R (F, 2, 3),
+visibility masks (F, P), True where observed.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from threadpoolctl import threadpool_limits
+
+from .._validation import check_count, check_positive
+from ..kernels import d_max_width, d_med_width
+from ..regularizer import minimize_regularized
+from .camera_refinement import CameraShapeResult, refine_cameras_and_shapes
+from .factorization import initialize_cameras
+from .reprojection import OrthographicReprojection, check_cameras, check_tracks
+from .tnh import trace_norm_heuristic
+from .unknown_cameras import tnh_with_camera_refinement
+
+__all__ = [
+    "DEFAULT_TNH_TAUS",
+    "DEFAULT_KERNEL_TAUS",
+    "WIDTH_MULTIPLES",
+    "WIDTH_RULES",
+    "visibility_folds",
+    "holdout_reprojection_error",
+    "TNHTauSelection",
+    "select_tnh_tau",
+    "KernelSelection",
+    "select_kernel",
+    "kernel_camera_alternation",
+]
+
+#: TNH tau grid (unit of the tracks squared): 7 log-spaced values over Table 4's search interval [0.1, 100].
+DEFAULT_TNH_TAUS = tuple(float(t) for t in np.logspace(-1, 2, 7))
+#: Kernel tau grid: the paper's 1e-4 and one decade either side.
+DEFAULT_KERNEL_TAUS = (1e-5, 1e-4, 1e-3)
+#: Kernel widths as multiples of the width rule's gamma (0.5: wider kernel, 2: narrower).
+WIDTH_MULTIPLES = (0.5, 1.0, 2.0)
+#: The paper's width rules: name -> gamma of the RBF kernel from shapes as rows.
+WIDTH_RULES: dict[str, Callable[[np.ndarray], float]] = {"d_max": d_max_width, "d_med": d_med_width}
+
+
+# --------------------------------------------------------------------------------------------------
+# Folds and the score
+# --------------------------------------------------------------------------------------------------
+
+
+def visibility_folds(
+    mask,
+    n_folds: int = 3,
+    random_state=0,
+    *,
+    holdout_fraction: float | None = None,
+    min_per_frame: int = 3,
+    min_per_point: int = 1,
+) -> list[np.ndarray]:
+    """Hidden 2D points of the cross-validation folds: disjoint subsets of the observed points.
+
+    The observed (frame, point) pairs are shuffled with ``random_state``; fold k hides the k-th chunk
+    of ``round(holdout_fraction * n_observed)`` of them (``holdout_fraction=None``: the k-th of
+    ``n_folds`` equal shares, a partition). A fold then un-hides points, in shuffled order, until every
+    frame keeps ``min_per_frame`` observed points for training (an orthographic camera has 5 degrees
+    of freedom: with fewer, the frame's camera and shape are not determined) and every point keeps
+    ``min_per_point`` frames (a point never seen has no track to reconstruct). A frame or point with
+    fewer observations than that in ``mask`` itself is never hidden.
+
+    Parameters
+    ----------
+    mask : bool array, shape (F, P)
+        True where point j is observed in frame f.
+    n_folds : int >= 2, default 3
+    random_state : int or numpy Generator, default 0
+        Seed of the shuffle: the same seed gives the same folds.
+    holdout_fraction : float in (0, 1 / n_folds], optional
+        Share of the observed points each fold hides (before the un-hiding above); default 1 / n_folds.
+    min_per_frame, min_per_point : int >= 0, defaults 3 and 1
+        Training observations every frame and every point keeps.
+
+    Returns
+    -------
+    folds : list of n_folds bool arrays, shape (F, P)
+        True at the points fold k hides: observed, disjoint across folds.
+    """
+    mask = np.asarray(mask)
+    if mask.ndim != 2 or mask.dtype != bool:
+        raise ValueError(f"mask must be a 2-d bool array (F, P); got dtype {mask.dtype}, shape {mask.shape}")
+    n_folds = check_count(n_folds, "n_folds")
+    if n_folds < 2:
+        raise ValueError(f"n_folds must be >= 2; got {n_folds}")
+    if holdout_fraction is None:
+        frac = 1.0 / n_folds
+    else:
+        frac = check_positive(holdout_fraction, "holdout_fraction")
+        if frac * n_folds > 1.0 + 1e-12:
+            raise ValueError(
+                f"holdout_fraction * n_folds must be <= 1 (the folds are disjoint); got {frac} * {n_folds}"
+            )
+    min_per_frame = check_count(min_per_frame, "min_per_frame") if min_per_frame else 0
+    min_per_point = check_count(min_per_point, "min_per_point") if min_per_point else 0
+    observed = np.flatnonzero(mask.ravel())
+    if observed.size < n_folds:
+        raise ValueError(f"mask has {observed.size} observed points, fewer than n_folds = {n_folds}")
+    order = np.random.default_rng(random_state).permutation(observed)
+    size = observed.size // n_folds if holdout_fraction is None else int(round(frac * observed.size))
+    F, P = mask.shape
+    folds = []
+    for k in range(n_folds):
+        chunk = order[k::n_folds] if holdout_fraction is None else order[k * size : (k + 1) * size]
+        hidden = np.zeros(mask.size, dtype=bool)
+        hidden[chunk] = True
+        hidden = hidden.reshape(F, P)
+        for axis, minimum in ((1, min_per_frame), (0, min_per_point)):
+            train = (mask & ~hidden).sum(axis=axis)
+            for idx in np.flatnonzero(train < minimum):
+                # un-hide this frame's (point's) hidden points in shuffled order until it has enough
+                line = chunk[(chunk // P == idx) if axis == 1 else (chunk % P == idx)]
+                need = minimum - train[idx]
+                for flat in line[:need]:
+                    hidden[flat // P, flat % P] = False
+        folds.append(hidden)
+    return folds
+
+
+def holdout_reprojection_error(W2d, hidden, R, X) -> float:
+    """Mean squared reprojection error of the hidden points: mean over (f, j) hidden of
+    ``||w_f(x_j) - R_f s_f(x_j)||^2`` (both image coordinates; unit of the tracks squared).
+
+    Parameters
+    ----------
+    W2d : array, shape (F, 2P)
+        Image tracks as rows (must be finite at the hidden points).
+    hidden : bool array, shape (F, P)
+    R : array, shape (F, 2, 3)
+        The reconstruction's cameras (known or estimated).
+    X : array, shape (F, 3P)
+        The reconstruction's shapes as rows.
+    """
+    W2d = np.asarray(W2d, dtype=float)
+    hidden = np.asarray(hidden, dtype=bool)
+    F, P = hidden.shape
+    if not hidden.any():
+        raise ValueError("hidden has no True entry: no point to score")
+    residual = W2d.reshape(F, 2, P) - np.asarray(R) @ np.asarray(X).reshape(F, 3, P)
+    return float(np.sum(residual**2, axis=1)[hidden].mean())
+
+
+def _grid(values, name: str) -> np.ndarray:
+    arr = np.atleast_1d(np.asarray(values, dtype=np.float64))
+    if arr.ndim != 1 or arr.size == 0 or not np.all(np.isfinite(arr) & (arr > 0)):
+        raise ValueError(f"{name} must be a non-empty 1-d sequence of finite numbers > 0; got {values!r}")
+    return np.unique(arr)
+
+
+def _map(fn: Callable, args: list[tuple], n_jobs: int) -> list:
+    if n_jobs == 1 or len(args) == 1:
+        return [fn(*a) for a in args]
+    with ProcessPoolExecutor(max_workers=min(n_jobs, len(args))) as pool:
+        futures = [pool.submit(fn, *a) for a in args]
+        return [f.result() for f in futures]
+
+
+def _summarise(rows: list[dict], keys: list[str]) -> pd.DataFrame:
+    grouped = pd.DataFrame(rows).groupby(keys, sort=True)
+    out = grouped["test_error"].agg(mean_test_error="mean", std_test_error="std").reset_index()
+    out["fit_time"] = grouped["fit_time"].mean().to_numpy()
+    return out
+
+
+# --------------------------------------------------------------------------------------------------
+# TNH's tau with estimated cameras (Table 4)
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(repr=False)
+class TNHTauSelection:
+    """Outcome of :func:`select_tnh_tau`.
+
+    Attributes
+    ----------
+    tau_ : float
+        The chosen TNH weight (unit of the tracks squared).
+    cv_results_ : DataFrame
+        One row per candidate, by tau: ``tau, mean_test_error`` (mean over folds of the mean squared
+        reprojection error of the hidden points, unit of the tracks squared), ``std_test_error``
+        (sample sd over folds), ``fit_time`` (mean CPU seconds of one fold solve).
+    result_ : CameraShapeResult
+        TNH with camera refinement at ``tau_`` on every observed point, from ``rigid_cameras_``.
+    rigid_cameras_ : array, shape (F, 2, 3)
+        Rigid factorisation of every observed point (the refit's start).
+    folds_ : list of bool arrays, shape (F, P)
+        The hidden points of each fold.
+    fold_results_ : list of CameraShapeResult
+        Each fold's solve at ``tau_`` (start of :func:`select_kernel`'s folds).
+    refit_time_ : float
+        CPU seconds of the refit alone (rigid factorisation and one alternation): the cost of one solve.
+    """
+
+    tau_: float
+    cv_results_: pd.DataFrame
+    result_: CameraShapeResult
+    rigid_cameras_: np.ndarray
+    folds_: list
+    fold_results_: list
+    refit_time_: float
+
+    def __repr__(self) -> str:
+        n, k = len(self.cv_results_), len(self.folds_)
+        return f"TNHTauSelection(tau_={self.tau_:.4g}, candidates={n}, folds={k})"
+
+
+def _tnh_fold(W2d, train, hidden, taus, options):
+    with threadpool_limits(1):
+        R0 = initialize_cameras(W2d, train)
+        rows, results = [], []
+        for tau in taus:
+            start = time.process_time()
+            res = tnh_with_camera_refinement(W2d, train, R0, float(tau), **options)
+            error = holdout_reprojection_error(W2d, hidden, res.R, res.x)
+            rows.append({"tau": float(tau), "test_error": error, "fit_time": time.process_time() - start})
+            results.append(res)
+        return rows, results
+
+
+def select_tnh_tau(
+    W2d,
+    mask=None,
+    *,
+    taus=None,
+    n_folds: int = 3,
+    holdout_fraction: float | None = None,
+    random_state=0,
+    n_jobs: int = 1,
+    **alternation_options,
+) -> TNHTauSelection:
+    """Choose TNH's tau for NRSfM with unknown cameras by hold-out reprojection error.
+
+    Per fold: rigid factorisation of the training points
+    (:func:`~nldr.nrsfm.factorization.initialize_cameras`), then for every tau
+    :func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement` from those cameras (a cold start,
+    to convergence), scored on the fold's hidden points. The chosen tau is refitted on every observed
+    point from the rigid cameras of all of them: exactly one evaluation of Table 4's oracle search.
+
+    Parameters
+    ----------
+    W2d : array, shape (F, 2P)
+        Centred image tracks as rows (entries of unobserved points are ignored).
+    mask : bool array, shape (F, P), optional
+        Visibility; default all observed.
+    taus : sequence of float > 0, optional
+        Candidates (unit of the tracks squared); default :data:`DEFAULT_TNH_TAUS`.
+    n_folds, holdout_fraction, random_state
+        Folds of :func:`visibility_folds` (every frame keeps 3 training points).
+    n_jobs : int >= 1
+        Processes over the folds, one BLAS thread each.
+    **alternation_options
+        Passed to :func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement` (``max_outer``,
+        ``tol``, ...), in the folds and the refit.
+
+    Returns
+    -------
+    TNHTauSelection
+        Ties go to the smallest tau.
+    """
+    W, mask = check_tracks(W2d, mask)
+    n_jobs = check_count(n_jobs, "n_jobs")
+    taus = _grid(DEFAULT_TNH_TAUS if taus is None else taus, "taus")
+    folds = visibility_folds(mask, n_folds, random_state, holdout_fraction=holdout_fraction)
+    W2d = W  # zeros where unobserved
+    per_fold = _map(_tnh_fold, [(W2d, mask & ~h, h, taus, alternation_options) for h in folds], n_jobs)
+    cv = _summarise([row for rows, _ in per_fold for row in rows], ["tau"])
+    best = int(np.argmin(cv["mean_test_error"].to_numpy()))
+    tau = float(cv["tau"].iloc[best])
+    start = time.process_time()
+    R0 = initialize_cameras(W2d, mask)
+    result = tnh_with_camera_refinement(W2d, mask, R0, tau, **alternation_options)
+    refit_time = time.process_time() - start
+    k = int(np.flatnonzero(taus == tau)[0])
+    fold_results = [results[k] for _, results in per_fold]
+    return TNHTauSelection(tau, cv, result, R0, folds, fold_results, refit_time)
+
+
+# --------------------------------------------------------------------------------------------------
+# The kernel regularizer's tau and width (Tables 3 and 4)
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(repr=False)
+class KernelSelection:
+    """Outcome of :func:`select_kernel`.
+
+    Attributes
+    ----------
+    tau_ : float
+        The chosen trace-norm weight.
+    width_multiple_ : float
+        The chosen multiple of the width rule's gamma.
+    gamma_ : float
+        ``width_multiple_`` times the rule on the refit's start shapes (1 / unit of the tracks squared).
+    cv_results_ : DataFrame
+        One row per candidate, by width multiple then tau: ``tau, width_multiple, mean_test_error``
+        (mean squared hidden reprojection error, unit of the tracks squared), ``std_test_error``,
+        ``fit_time`` (mean CPU seconds per fold solve; warm-started candidates are cheaper).
+    result_ : RegularizerResult or CameraShapeResult
+        The refit on every observed point: the regularizer with the known cameras, or (after
+        :func:`select_tnh_tau`) its alternation with the camera LM, which also has cameras ``R``.
+    folds_ : list of bool arrays, shape (F, P)
+    start_ : (R, X)
+        Cameras (F, 2, 3) and shapes (F, 3P) the refit started from.
+    refit_time_ : float
+        CPU seconds of the refit's kernel solve (or alternation) alone: the cost of one solve.
+    """
+
+    tau_: float
+    width_multiple_: float
+    gamma_: float
+    cv_results_: pd.DataFrame
+    result_: object
+    folds_: list
+    start_: tuple
+    refit_time_: float
+
+    def __repr__(self) -> str:
+        return (
+            f"KernelSelection(tau_={self.tau_:.4g}, width_multiple_={self.width_multiple_:g}, "
+            f"gamma_={self.gamma_:.4g}, candidates={len(self.cv_results_)})"
+        )
+
+
+def _kernel_fold(W2d, train, hidden, R, X_start, rule, multiples, taus, warm_start, options):
+    with threadpool_limits(1):
+        term = OrthographicReprojection(W2d, R, train)
+        rho_max = options.get("rho_max", 1e4)
+        base_gamma = WIDTH_RULES[rule](X_start)
+        rows = []
+        for m in multiples:
+            previous = None
+            for tau in taus:
+                start = time.process_time()
+                if warm_start and previous is not None:
+                    stage = {**options, "rho0": rho_max, "rho_max": rho_max}
+                    res = minimize_regularized(term, previous, gamma=m * base_gamma, tau=float(tau), **stage)
+                else:
+                    res = minimize_regularized(term, X_start, gamma=m * base_gamma, tau=float(tau), **options)
+                previous = res.x
+                error = holdout_reprojection_error(W2d, hidden, R, res.x)
+                rows.append(
+                    {
+                        "tau": float(tau),
+                        "width_multiple": float(m),
+                        "test_error": error,
+                        "fit_time": time.process_time() - start,
+                    }
+                )
+        return rows
+
+
+def _known_camera_start(W2d, R, train, tnh_options):
+    with threadpool_limits(1):
+        return trace_norm_heuristic(W2d, R, train, **tnh_options).x
+
+
+def kernel_camera_alternation(W2d, mask, R_start, X_start, *, gamma, tau, max_outer=20, tol=1e-4, **options):
+    """The kernel regularizer alternating with the camera LM from (``R_start``, ``X_start``): Table 4's
+    kernel stage (the same steps as :func:`nldr.experiments.table4.kernel_with_camera_refinement`).
+
+    Each shape step runs :func:`~nldr.regularizer.minimize_regularized` (RBF ``gamma``, weight ``tau``,
+    further ``options``) from the previous shapes with the current cameras; stops when the
+    reprojection error falls by less than ``tol`` (relative) over 3 outer iterations, or after
+    ``max_outer``. Returns a :class:`~nldr.nrsfm.CameraShapeResult` (shapes ``x``, cameras ``R``).
+    """
+    state = {"X": X_start}
+
+    def shape_step(R):
+        term = OrthographicReprojection(W2d, R, mask)
+        state["X"] = minimize_regularized(term, state["X"], gamma=gamma, tau=tau, **options).x
+        return state["X"]
+
+    return refine_cameras_and_shapes(W2d, mask, R_start, shape_step, max_outer=max_outer, tol=tol, window=3)
+
+
+def select_kernel(
+    W2d,
+    mask=None,
+    *,
+    R=None,
+    tnh: TNHTauSelection | None = None,
+    taus=None,
+    width_multiples=None,
+    width_rule: str = "d_med",
+    n_folds: int = 3,
+    holdout_fraction: float | None = None,
+    random_state=0,
+    warm_start: bool = True,
+    tnh_options: Mapping | None = None,
+    camera_options: Mapping | None = None,
+    n_jobs: int = 1,
+    **regularizer_options,
+) -> KernelSelection:
+    """Choose the kernel regularizer's tau and width for NRSfM by hold-out reprojection error.
+
+    Give exactly one of ``R`` (known cameras, Table 3) or ``tnh`` (a :func:`select_tnh_tau` result,
+    Table 4). Candidate gammas are ``width_multiples`` times the ``width_rule`` on each fold's start
+    shapes, so the chosen quantity is the multiple; the refit applies it to its own start.
+
+    Parameters
+    ----------
+    W2d : array, shape (F, 2P)
+        Centred image tracks as rows.
+    mask : bool array, shape (F, P), optional
+        Visibility; default all observed. With ``tnh``, must be the mask it was selected on.
+    R : array, shape (F, 2, 3), optional
+        Known cameras. Each fold (and the refit) starts from the exact-fit TNH of its training points
+        (:func:`~nldr.nrsfm.trace_norm_heuristic` with ``tnh_options``).
+    tnh : TNHTauSelection, optional
+        Unknown cameras: its folds are reused, each fold starts from that fold's TNH (cameras and shapes)
+        at the selected tau and keeps those cameras; the refit starts from ``tnh.result_`` and
+        alternates with the camera LM (:func:`kernel_camera_alternation`, ``camera_options``:
+        ``max_outer``, ``tol``).
+    taus : sequence of float > 0, optional
+        Default :data:`DEFAULT_KERNEL_TAUS`.
+    width_multiples : sequence of float > 0, optional
+        Default :data:`WIDTH_MULTIPLES`.
+    width_rule : {"d_med", "d_max"}, default "d_med"
+        The paper's rule the multiples scale (:data:`WIDTH_RULES`).
+    n_folds, holdout_fraction, random_state
+        Folds of :func:`visibility_folds` (known cameras only; ``tnh`` brings its own).
+    warm_start : bool, default True
+        Solve each (fold, width) along tau, smallest first, warm-starting with the last penalty stage.
+    tnh_options : mapping, optional
+        Options of the known-camera TNH (default: exact fit by ADMM).
+    n_jobs : int >= 1
+        Processes over the folds.
+    **regularizer_options
+        Passed to :func:`~nldr.regularizer.minimize_regularized` (``rho0, rho_growth, rho_max, center,
+        max_inner, ...``) in the folds and the refit.
+
+    Returns
+    -------
+    KernelSelection
+        Ties go to the first row of ``cv_results_``.
+    """
+    W, mask = check_tracks(W2d, mask)
+    if (R is None) == (tnh is None):
+        raise ValueError("give exactly one of R (known cameras) or tnh (a select_tnh_tau result)")
+    if width_rule not in WIDTH_RULES:
+        raise ValueError(f"width_rule must be one of {tuple(WIDTH_RULES)}; got {width_rule!r}")
+    for key in ("gamma", "tau"):
+        if key in regularizer_options:
+            raise ValueError(f"regularizer option {key!r} is set by select_kernel; remove it")
+    n_jobs = check_count(n_jobs, "n_jobs")
+    taus = _grid(DEFAULT_KERNEL_TAUS if taus is None else taus, "taus")
+    multiples = _grid(WIDTH_MULTIPLES if width_multiples is None else width_multiples, "width_multiples")
+    W2d = W
+    if R is not None:
+        R = check_cameras(R, mask.shape[0])
+        tnh_options = dict(tnh_options or {})
+        folds = visibility_folds(mask, n_folds, random_state, holdout_fraction=holdout_fraction)
+        starts = _map(_known_camera_start, [(W2d, R, mask & ~h, tnh_options) for h in folds], n_jobs)
+        fold_cameras = [R] * len(folds)
+    else:
+        if tnh.folds_[0].shape != mask.shape or np.any(tnh.folds_[0] & ~mask):
+            raise ValueError("tnh was selected on another mask; pass the mask of select_tnh_tau")
+        folds = tnh.folds_
+        starts = [res.x for res in tnh.fold_results_]
+        fold_cameras = [res.R for res in tnh.fold_results_]
+    args = [
+        (W2d, mask & ~h, h, Rk, Xk, width_rule, multiples, taus, warm_start, regularizer_options)
+        for h, Rk, Xk in zip(folds, fold_cameras, starts, strict=True)
+    ]
+    rows = [row for fold in _map(_kernel_fold, args, n_jobs) for row in fold]
+    cv = _summarise(rows, ["width_multiple", "tau"])[
+        ["tau", "width_multiple", "mean_test_error", "std_test_error", "fit_time"]
+    ]
+    best = int(np.argmin(cv["mean_test_error"].to_numpy()))
+    tau, multiple = float(cv["tau"].iloc[best]), float(cv["width_multiple"].iloc[best])
+    if R is not None:
+        X0 = _known_camera_start(W2d, R, mask, tnh_options)
+        gamma = multiple * WIDTH_RULES[width_rule](X0)
+        begin = time.process_time()
+        result = minimize_regularized(
+            OrthographicReprojection(W2d, R, mask), X0, gamma=gamma, tau=tau, **regularizer_options
+        )
+        start = (R, X0)
+    else:
+        R0, X0 = tnh.result_.R, tnh.result_.x
+        gamma = multiple * WIDTH_RULES[width_rule](X0)
+        begin = time.process_time()
+        result = kernel_camera_alternation(
+            W2d, mask, R0, X0, gamma=gamma, tau=tau, **dict(camera_options or {}), **regularizer_options
+        )
+        start = (R0, X0)
+    return KernelSelection(tau, multiple, gamma, cv, result, folds, start, time.process_time() - begin)

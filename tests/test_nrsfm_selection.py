@@ -1,0 +1,210 @@
+"""Hold-out selection for NRSfM (nldr.nrsfm.selection): folds of observed 2D points, the hidden
+reprojection score, and the selections of TNH's tau and the kernel method's tau and width, checked
+against the same computations done by hand."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_limits
+
+from nldr.kernels import d_med_width
+from nldr.nrsfm import (
+    OrthographicReprojection,
+    e3d,
+    initialize_cameras,
+    kernel_camera_alternation,
+    select_kernel,
+    select_tnh_tau,
+    tnh_with_camera_refinement,
+    trace_norm_heuristic,
+    visibility_folds,
+)
+from nldr.nrsfm.rotations import quaternion_to_camera
+from nldr.nrsfm.selection import holdout_reprojection_error
+from nldr.regularizer import minimize_regularized
+
+
+@pytest.fixture(autouse=True)
+def one_blas_thread():
+    with threadpool_limits(1):
+        yield
+
+
+def synthetic_sequence(F=24, P=10, missing=0.3, noise=0.0, seed=0):
+    """A non-rigid sequence of known low rank: S_f = B0 + sin(t_f) B1 + cos(2 t_f) B2 (rank 3 in the
+    shape space, per-frame centred points), smoothly rotating orthographic cameras, a random mask."""
+    rng = np.random.default_rng(seed)
+    B = rng.normal(size=(3, 3, P))
+    B[1:] *= 0.4
+    B -= B.mean(axis=2, keepdims=True)
+    t = np.linspace(0, 2 * np.pi, F)
+    S = B[0] + np.sin(t)[:, None, None] * B[1] + np.cos(2 * t)[:, None, None] * B[2]  # (F, 3, P)
+    axis = np.stack([np.cos(t / 2), 0.3 * np.sin(t), np.sin(t / 2), 0.2 * np.ones(F)], axis=1)
+    R = quaternion_to_camera(axis / np.linalg.norm(axis, axis=1, keepdims=True))
+    W = (R @ S).reshape(F, 2 * P) + noise * rng.normal(size=(F, 2 * P))
+    mask = rng.random((F, P)) >= missing
+    return W, R, S.reshape(F, 3 * P), mask
+
+
+# --------------------------------------------------------------------------------------------------
+# Folds and the score
+# --------------------------------------------------------------------------------------------------
+
+
+def test_folds_are_disjoint_observed_and_repeat_with_the_seed():
+    _, _, _, mask = synthetic_sequence(F=30, P=12, missing=0.4)
+    folds = visibility_folds(mask, 3, random_state=5)
+    total = np.sum(folds, axis=0)
+    assert total.max() == 1 and not total[~mask].any()  # disjoint, only observed points
+    again = visibility_folds(mask, 3, random_state=5)
+    assert all(np.array_equal(a, b) for a, b in zip(folds, again, strict=True))
+    other = visibility_folds(mask, 3, random_state=6)
+    assert not all(np.array_equal(a, b) for a, b in zip(folds, other, strict=True))
+    for hidden in folds:  # every frame keeps 3 training points, every point one frame
+        train = mask & ~hidden
+        assert (train.sum(axis=1) >= 3).all() and (train.sum(axis=0) >= 1).all()
+
+
+def test_holdout_fraction_hides_that_share_and_sparse_frames_keep_three_points():
+    mask = np.ones((20, 10), dtype=bool)
+    folds = visibility_folds(mask, 2, random_state=0, holdout_fraction=0.1)
+    assert [int(h.sum()) for h in folds] == [20, 20]
+    assert not (folds[0] & folds[1]).any()
+    mask[4, 3:] = False  # frame 4: three observed points, none may be hidden
+    mask[7, 4:] = False  # frame 7: four, at most one hidden
+    for hidden in visibility_folds(mask, 3, random_state=1):
+        assert not hidden[4].any() and hidden[7].sum() <= 1
+        assert ((mask & ~hidden).sum(axis=1) >= 3).all()
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"n_folds": 1}, "n_folds"),
+        ({"holdout_fraction": 0.6}, "holdout_fraction"),
+        ({"mask": np.ones(4)}, "mask"),
+    ],
+)
+def test_folds_reject_bad_input_naming_it(kwargs, match):
+    args = {"mask": np.ones((6, 5), dtype=bool), **kwargs}
+    with pytest.raises(ValueError, match=match):
+        visibility_folds(args.pop("mask"), **args)
+
+
+def test_score_is_the_mean_squared_2d_distance_of_the_hidden_points():
+    W, R, X, _ = synthetic_sequence(F=5, P=4)
+    rng = np.random.default_rng(1)
+    X_hat = X + 0.1 * rng.normal(size=X.shape)
+    hidden = np.zeros((5, 4), dtype=bool)
+    hidden[1, 2] = hidden[3, 0] = True
+    by_hand = []
+    for f, j in zip(*np.nonzero(hidden), strict=True):
+        s = X_hat[f].reshape(3, 4)[:, j]
+        w = np.array([W[f, j], W[f, 4 + j]])
+        by_hand.append(np.sum((w - R[f] @ s) ** 2))
+    assert holdout_reprojection_error(W, hidden, R, X_hat) == pytest.approx(np.mean(by_hand), rel=1e-14)
+    assert holdout_reprojection_error(W, hidden, R, X) == pytest.approx(0.0, abs=1e-24)
+
+
+# --------------------------------------------------------------------------------------------------
+# The kernel method with known cameras (Table 3)
+# --------------------------------------------------------------------------------------------------
+
+SCHEDULE = {"rho0": 1e-3, "rho_growth": 10.0, "rho_max": 10.0, "max_inner": 100}  # Table 3's, capped
+
+
+def test_kernel_scores_are_the_hand_computed_fold_solves_and_the_refit_is_the_solver():
+    W, R, _, mask = synthetic_sequence(F=12, P=7, missing=0.3)
+    taus, multiples = [1e-4, 1e-3], [1.0]
+    sel = select_kernel(
+        W, mask, R=R, taus=taus, width_multiples=multiples, n_folds=2, warm_start=False, **SCHEDULE
+    )
+    folds = visibility_folds(mask, 2, random_state=0)
+    for tau in taus:
+        errors = []
+        for hidden in folds:
+            train = mask & ~hidden
+            X0 = trace_norm_heuristic(W, R, train).x
+            res = minimize_regularized(
+                OrthographicReprojection(W, R, train), X0, gamma=d_med_width(X0), tau=tau, **SCHEDULE
+            )
+            errors.append(holdout_reprojection_error(W, hidden, R, res.x))
+        row = sel.cv_results_[sel.cv_results_["tau"] == tau].iloc[0]
+        assert row["mean_test_error"] == pytest.approx(np.mean(errors), rel=1e-12)
+        assert row["std_test_error"] == pytest.approx(np.std(errors, ddof=1), rel=1e-9)
+    assert sel.tau_ == taus[int(np.argmin(sel.cv_results_["mean_test_error"]))]
+    X0 = trace_norm_heuristic(W, R, mask).x
+    refit = minimize_regularized(
+        OrthographicReprojection(W, R, mask),
+        X0,
+        gamma=sel.width_multiple_ * d_med_width(X0),
+        tau=sel.tau_,
+        **SCHEDULE,
+    )
+    np.testing.assert_array_equal(sel.result_.x, refit.x)
+    assert sel.gamma_ == sel.width_multiple_ * d_med_width(X0)
+
+
+def test_kernel_selection_repeats_with_the_seed_and_rejects_bad_input():
+    W, R, _, mask = synthetic_sequence(F=10, P=6, missing=0.2)
+    kw = dict(R=R, taus=[1e-4, 1e-3], width_multiples=[0.5, 1.0], n_folds=2, random_state=3, **SCHEDULE)
+    a, b = select_kernel(W, mask, **kw), select_kernel(W, mask, **kw)
+    cols = ["tau", "width_multiple", "mean_test_error", "std_test_error"]
+    assert a.cv_results_[cols].equals(b.cv_results_[cols]) and (a.tau_, a.gamma_) == (b.tau_, b.gamma_)
+    assert len(a.cv_results_) == 4
+    with pytest.raises(ValueError, match="exactly one"):
+        select_kernel(W, mask)
+    with pytest.raises(ValueError, match="width_rule"):
+        select_kernel(W, mask, R=R, width_rule="d_min")
+    with pytest.raises(ValueError, match="tau"):
+        select_kernel(W, mask, R=R, tau=1e-4)
+
+
+# --------------------------------------------------------------------------------------------------
+# TNH with estimated cameras (Table 4), and the kernel stage after it
+# --------------------------------------------------------------------------------------------------
+
+ALTERNATION = {"max_outer": 500, "tol": 1e-6}
+
+
+def test_tnh_scores_are_cold_start_fold_solves_and_cv_beats_an_extreme_tau():
+    # noisy tracks of a rank-3 sequence: tau = 1000 shrinks the shapes to nothing, tau = 1 denoises;
+    # the CV minimiser is also better in 3D than the extreme it rejected
+    W, _, X_gt, mask = synthetic_sequence(F=16, P=8, missing=0.2, noise=0.02, seed=2)
+    taus = [1.0, 1000.0]
+    sel = select_tnh_tau(W, mask, taus=taus, n_folds=2, **ALTERNATION)
+    folds = visibility_folds(mask, 2, random_state=0)
+    for tau in taus:
+        errors = []
+        for hidden in folds:
+            train = mask & ~hidden
+            res = tnh_with_camera_refinement(W, train, initialize_cameras(W, train), tau, **ALTERNATION)
+            errors.append(holdout_reprojection_error(W, hidden, res.R, res.x))
+        row = sel.cv_results_[sel.cv_results_["tau"] == tau].iloc[0]
+        assert row["mean_test_error"] == pytest.approx(np.mean(errors), rel=1e-12)
+    assert sel.tau_ == 1.0
+    refit = tnh_with_camera_refinement(W, mask, initialize_cameras(W, mask), sel.tau_, **ALTERNATION)
+    np.testing.assert_array_equal(sel.result_.x, refit.x)
+    extreme = tnh_with_camera_refinement(W, mask, initialize_cameras(W, mask), 1000.0, **ALTERNATION)
+    P = mask.shape[1]
+    assert e3d(sel.result_.x, X_gt, P, align=True) < e3d(extreme.x, X_gt, P, align=True)
+    # the kernel stage after it: its folds start from the fold solves at tau_, its refit alternates
+    # with the camera LM from the refit
+    ksel = select_kernel(
+        W, mask, tnh=sel, taus=[1e-4], width_multiples=[1.0], camera_options={"max_outer": 3}, **SCHEDULE
+    )
+    assert ksel.folds_ is sel.folds_
+    by_hand = kernel_camera_alternation(
+        W,
+        mask,
+        sel.result_.R,
+        sel.result_.x,
+        gamma=d_med_width(sel.result_.x),
+        tau=1e-4,
+        max_outer=3,
+        **SCHEDULE,
+    )
+    np.testing.assert_array_equal(ksel.result_.x, by_hand.x)
+    with pytest.raises(ValueError, match="another mask"):
+        select_kernel(W, mask & ~sel.folds_[0], tnh=sel)
