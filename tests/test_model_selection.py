@@ -72,6 +72,27 @@ def test_a_sparse_column_keeps_a_training_entry_in_every_fold():
         assert np.all((mask & ~hidden).any(axis=0))
 
 
+def test_holdout_folds_hide_the_given_share_afresh_and_repeat_with_the_seed():
+    _, _, mask = denoising_problem(n=30, d=6)
+    folds = holdout_folds(mask, 3, random_state=5, holdout=0.1)
+    size = round(0.1 * mask.sum())
+    for hidden in folds:
+        assert hidden.sum() == size and not np.any(hidden & ~mask)  # every column keeps many entries
+    assert not np.array_equal(folds[0], folds[1])  # drawn afresh, not one draw reused
+    again = holdout_folds(mask, 3, random_state=5, holdout=0.1)
+    assert all(np.array_equal(a, b) for a, b in zip(folds, again, strict=True))
+    sparse = np.ones((8, 3), dtype=bool)
+    sparse[1:, 2] = False
+    for hidden in holdout_folds(sparse, 4, random_state=0, holdout=0.5):
+        assert np.all((sparse & ~hidden).any(axis=0))
+
+
+@pytest.mark.parametrize("holdout", [0.0, 1.0, -0.1, "0.1"])
+def test_holdout_outside_the_unit_interval_is_refused(holdout):
+    with pytest.raises(ValueError, match="holdout"):
+        holdout_folds(np.ones((5, 5), dtype=bool), 2, holdout=holdout)
+
+
 @pytest.mark.parametrize(
     "kwargs, match",
     [
@@ -80,6 +101,9 @@ def test_a_sparse_column_keeps_a_training_entry_in_every_fold():
         ({"gammas": []}, "gammas"),
         ({"n_folds": 1}, "n_folds"),
         ({"tau": 1.0}, "tau"),
+        ({"holdout": 1.5}, "holdout"),
+        ({"rule": "best"}, "rule"),
+        ({"stop_factor": 1.0}, "stop_factor"),
     ],
 )
 def test_select_regularizer_rejects_bad_input_naming_it(kwargs, match):
@@ -104,7 +128,10 @@ def test_a_column_without_observed_entries_is_refused():
 def test_cv_score_is_the_hand_computed_holdout_error_and_the_refit_is_the_solver():
     _, W, mask = denoising_problem(n=25, d=5)
     taus, gamma = [0.1, 1.0], median_gamma(W, mask)
-    sel = select_regularizer(W, mask, taus=taus, gammas=[gamma], n_folds=2, warm_start=False)
+    sel = select_regularizer(
+        W, mask, taus=taus, gammas=[gamma], n_folds=2, holdout=None, rule="min", warm_start=False,
+        stop_factor=None,
+    )
     folds = holdout_folds(mask, 2, random_state=0)
     for tau in taus:
         errors = [fold_error(W, mask, h, gamma, tau, tol=1e-7, gtol=1e-4) for h in folds]
@@ -124,8 +151,8 @@ def test_cv_score_is_the_hand_computed_holdout_error_and_the_refit_is_the_solver
 def test_warm_started_path_is_the_hand_chain_of_last_stage_solves():
     _, W, mask = denoising_problem(n=25, d=5)
     gamma = median_gamma(W, mask)
-    sel = select_regularizer(W, mask, taus=[1.0, 0.1], gammas=[gamma], n_folds=2)
-    hidden = holdout_folds(mask, 2, random_state=0)
+    sel = select_regularizer(W, mask, taus=[1.0, 0.1], gammas=[gamma], n_folds=2, stop_factor=None)
+    hidden = holdout_folds(mask, 2, random_state=0, holdout=0.1)  # the default folds
     errors = {0.1: [], 1.0: []}
     for h in hidden:
         train = mask & ~h
@@ -139,6 +166,60 @@ def test_warm_started_path_is_the_hand_chain_of_last_stage_solves():
     for tau, errs in errors.items():
         row = sel.cv_results_[sel.cv_results_["tau"] == tau].iloc[0]
         assert row["mean_test_error"] == pytest.approx(np.mean(errs), rel=1e-12)
+
+
+def test_warm_gamma_chains_the_first_solves_of_the_gammas_by_hand():
+    _, W, mask = denoising_problem(n=25, d=5)
+    g1, g2 = 0.5 * median_gamma(W, mask), median_gamma(W, mask)
+    sel = select_regularizer(W, mask, taus=[0.1], gammas=[g2, g1], n_folds=2, warm_gamma=True)
+    opts = {"isolation_guard": True, "tol": 1e-7, "gtol": 1e-4, "tau": 0.1}
+    errors = {g1: [], g2: []}
+    for h in sel.folds_:
+        train = mask & ~h
+        W_train = np.where(train, W, np.nan)
+        term = MaskedLeastSquares(W_train, train)
+        first = minimize_regularized(term, mean_impute(W_train, train), gamma=g1, **opts)  # smaller first
+        second = minimize_regularized(term, first.x, gamma=g2, rho0=1e4, **opts)
+        errors[g1].append(np.mean((first.x - W)[h] ** 2))
+        errors[g2].append(np.mean((second.x - W)[h] ** 2))
+    for gamma, errs in errors.items():
+        row = sel.cv_results_[np.isclose(sel.cv_results_["gamma"], gamma)].iloc[0]
+        assert row["mean_test_error"] == pytest.approx(np.mean(errs), rel=1e-12)
+
+
+def test_one_se_rule_picks_the_smallest_tau_within_one_standard_error_of_the_minimum():
+    _, W, mask = denoising_problem(n=25, d=5)
+    taus = [0.01, 0.1, 1.0, 10.0]
+    one_se = select_regularizer(W, mask, taus=taus, n_folds=3, random_state=1)
+    best = select_regularizer(W, mask, taus=taus, n_folds=3, random_state=1, rule="min")
+    cv = one_se.cv_results_
+    assert cv.equals(best.cv_results_.assign(fit_time=cv["fit_time"]))  # same folds, same scores
+    i = cv["mean_test_error"].idxmin()
+    assert (best.tau_, best.gamma_) == (cv["tau"][i], cv["gamma"][i])
+    bound = cv["mean_test_error"][i] + cv["std_test_error"][i] / np.sqrt(3)
+    close = cv[cv["mean_test_error"] <= bound]
+    chosen = cv[(cv["tau"] == one_se.tau_) & (cv["gamma"] == one_se.gamma_)].iloc[0]
+    assert chosen["mean_test_error"] <= bound
+    assert one_se.tau_ == close["tau"].min()
+    assert chosen["mean_test_error"] == close[close["tau"] == one_se.tau_]["mean_test_error"].min()
+
+
+def test_early_stop_leaves_the_solved_scores_unchanged_and_skips_only_the_end_of_a_path():
+    _, W, mask = denoising_problem(n=25, d=5)
+    taus = [0.01, 0.1, 1.0, 10.0, 100.0]
+    full = select_regularizer(W, mask, taus=taus, n_folds=2, stop_factor=None)
+    cut = select_regularizer(W, mask, taus=taus, n_folds=2, stop_factor=1.05)
+    assert full.cv_results_["mean_test_error"].notna().all()
+    skipped = cut.cv_results_["mean_test_error"].isna()
+    assert skipped.any()  # 1.05 is aggressive: some path must stop on this problem, or the test is void
+    solved = ~skipped
+    np.testing.assert_array_equal(
+        cut.cv_results_["mean_test_error"][solved], full.cv_results_["mean_test_error"][solved]
+    )
+    for _, path in cut.cv_results_.groupby("gamma"):
+        flags = path.sort_values("tau")["mean_test_error"].isna().to_numpy()
+        assert not flags[0] and np.all(np.diff(flags.astype(int)) >= 0)  # a suffix of the taus
+    assert not np.isnan(cut.cv_results_.set_index(["tau", "gamma"]).loc[(cut.tau_, cut.gamma_)].iloc[0])
 
 
 def test_same_seed_same_answer():

@@ -6,7 +6,8 @@ seed + k). Rows, per job:
 
 - ``Ours (paper values)``: the regularizer at the paper's gamma and tau (Table 2's "Ours");
 - ``Ours (CV)``: tau and gamma chosen by :func:`nldr.model_selection.select_regularizer` on the
-  observed entries only, then refitted on all of them;
+  observed entries only (folds hiding the config's ``holdout`` share, its ``rule``), then refitted on
+  all of them;
 - ``Ours (oracle grid point)``: the grid point with the lowest error against the complete matrix.
   It sees ground truth, so it is a reference for how good the grid can be, never a result;
 - ``<baseline> (CV)``: each baseline with a knob, its knob chosen on the same folds
@@ -101,6 +102,8 @@ class Selection(Table2):
             gammas=gammas,
             center=center,
             n_folds=settings["n_folds"],
+            holdout=settings["holdout"],
+            rule=settings["rule"],
             random_state=seed,
             **schedule,
         )
@@ -157,10 +160,17 @@ class Selection(Table2):
 
     def caption(self, config):
         s = self.settings(config)
+        folds = (
+            f"{s['n_folds']} folds partitioning them"
+            if s["holdout"] is None
+            else f"{s['n_folds']} folds each hiding {s['holdout']:.0%} of them"
+        )
+        rule = "the best" if s["rule"] == "min" else "the smallest tau within one standard error of the best"
         return (
             f"Selection (not in the paper): oil-flow completion (first {s['n_rows']} training rows, Table "
             f"2's masks), sum of squared errors, mean ± sd over {s['n_masks']} masks per p. Ours with the "
-            f"paper's gamma and tau; with tau and gamma chosen by {s['n_folds']}-fold hold-out CV on the "
-            "observed entries; and the best grid point on ground truth (an oracle, a reference only). "
-            "Baselines with their knob chosen by the same CV."
+            f"paper's gamma and tau; with tau and gamma chosen by hold-out CV on the observed entries "
+            f"({folds}, {rule}); and the best grid point on ground truth (an oracle, a reference only). "
+            f"Baselines with their knob chosen by {s['n_folds']}-fold CV (a partition of the observed "
+            "entries)."
         )
