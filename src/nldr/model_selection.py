@@ -436,7 +436,7 @@ def baseline_grid(method: str, W, mask) -> tuple[Callable, dict]:
 
     The peers of :mod:`nldr.baselines.peers` (not in the paper):
 
-    - ``"KNNImputer"``: ``n_neighbors`` 1, 2, 3, 5, 10, 20 (below n) x ``weights`` uniform, distance.
+    - ``"KNNImputer"``: ``n_neighbors`` 1, 2, 3, 5, 10, 20, 50 (below n) x ``weights`` uniform, distance.
     - ``"IterativeImputer"``: no knob (BayesianRidge learns its own penalty); the grid is the one fixed
       setting, ``{}``.
     - ``"missForest"``: ``max_features`` 1/3 (missForest's sqrt(d) rule near d = 12) and 1 (every
@@ -461,7 +461,7 @@ def baseline_grid(method: str, W, mask) -> tuple[Callable, dict]:
     if method == "PPCA":
         return ppca_impute, {"n_components": list(range(1, d))}
     if method == "KNNImputer":
-        neighbours = [k for k in (1, 2, 3, 5, 10, 20) if k < n]
+        neighbours = [k for k in (1, 2, 3, 5, 10, 20, 50) if k < n]
         return peers.knn_impute, {"n_neighbors": neighbours, "weights": list(peers.KNN_WEIGHTS)}
     if method == "IterativeImputer":
         return peers.iterative_impute, {}
