@@ -105,3 +105,47 @@ def test_unknown_names_are_reported_with_the_known_ones():
         get("table9")
     with pytest.raises(ValueError, match="no job"):
         get("table1").job(full_config(), "std9_seed1")
+
+
+def test_table2_peers_follow_the_paper_rows_only_on_their_first_masks(data_dir, monkeypatch):
+    """The peers add rows after the paper's (knobs by CV), a costly one only on the first masks per p,
+    and leave the paper's rows as run_mask returns them (stubbed here: the peers are under test)."""
+    import nldr.experiments.table2 as module
+
+    paper_rows = pd.DataFrame(
+        {
+            "p": [0.1],
+            "seed": [0],
+            "method": ["Ours"],
+            "sse": [1.0],
+            "available": [True],
+            "converged": [True],
+            "n_iter": [3],
+            "seconds": [0.0],
+            "n_missing": [7],
+        }
+    )
+    monkeypatch.setattr(module, "run_mask", lambda X, **kw: paper_rows.assign(seed=kw["seed"]))
+    config = full_config()
+    t2 = config["table2"]
+    t2.update(n_rows=30, p=[0.1], n_masks=2)
+    t2["peers"] = {
+        "methods": ["KNNImputer", "IterativeImputer", "missForest"],
+        "n_folds": 2,
+        "masks": {"missForest": 1},
+    }
+    table2 = get("table2")
+    settings = table2.job_settings(config)
+    first, second = (table2.run(job, settings, data_dir).rows for job in table2.jobs(config))
+    assert list(first["method"]) == ["Ours", "KNNImputer (CV)", "IterativeImputer", "missForest (CV)"]
+    assert list(second["method"]) == ["Ours", "KNNImputer (CV)", "IterativeImputer"]
+    pd.testing.assert_frame_equal(first.iloc[:1][paper_rows.columns], paper_rows.assign(seed=t2["seed"]))
+    knn = first.set_index("method").loc["KNNImputer (CV)"]
+    assert knn["params"].startswith("{'n_neighbors'") and knn["available"] and knn["sse"] > 0
+    assert first["n_missing"].nunique() == 2  # the stub's count, and the real mask's (same for every peer)
+    table = table2.summarise(pd.concat([first, second]))
+    assert list(dict.fromkeys(table["method"])) == ["Ours", *[m for m in module.PEER_ROWS if "Soft" not in m]]
+    n_masks = table[table["metric"] == "n_masks"].set_index("method")["value"]
+    assert n_masks["missForest (CV)"] == 1 and n_masks["KNNImputer (CV)"] == 2
+    caption = table2.caption(config)
+    assert "not in the paper" in caption and "missForest on the first 1 masks" in caption

@@ -513,25 +513,56 @@ def select_imputer(
 
 
 def baseline_grid(method: str, W, mask) -> tuple[Callable, dict]:
-    """Default ``(impute, param_grid)`` of a Table 2 baseline with a knob, for :func:`select_imputer`.
+    """Default ``(impute, param_grid)`` of a baseline or a peer, for :func:`select_imputer`.
+
+    The paper's baselines with a knob (Table 2):
 
     - ``"PPCA"``: latent dimension 1 .. d-1.
     - ``"PKPCA"``: width (multiples :data:`GAMMA_MULTIPLES` of :func:`median_gamma`) and components
       (the variance rule, or 2, 4, 8).
     - ``"RKPCA"``: width as PKPCA, components 2, 4, 7, 10 (below n).
 
+    The peers of :mod:`nldr.baselines.peers` (not in the paper):
+
+    - ``"KNNImputer"``: ``n_neighbors`` 1, 2, 3, 5, 10, 20, 50 (below n) x ``weights`` uniform, distance.
+    - ``"IterativeImputer"``: no knob (BayesianRidge learns its own penalty); the grid is the one fixed
+      setting, ``{}``.
+    - ``"missForest"``: ``max_features`` 1/3 (missForest's sqrt(d) rule near d = 12) and 1 (every
+      column, scikit-learn's regression default); 10 trees, 5 sweeps, seed 0.
+    - ``"SoftImpute"``: ``lam`` = :data:`nldr.baselines.peers.SOFT_IMPUTE_FRACTIONS` times the largest
+      singular value of the centred mean-filled matrix (at that value and above, Z = 0).
+
     Parameters
     ----------
-    method : {"PPCA", "PKPCA", "RKPCA"}
-    W, mask : the data and its observation mask (the grid's widths and sizes depend on them).
+    method : {"PPCA", "PKPCA", "RKPCA", "KNNImputer", "IterativeImputer", "missForest", "SoftImpute"}
+    W, mask : the data (n, d) and its observation mask (the grid's widths and sizes depend on them).
+
+    Returns
+    -------
+    impute : callable ``impute(W, mask, **params)``
+    param_grid : dict of parameter name -> list of candidate values (every combination is a candidate)
     """
+    from .baselines import peers
+
     W, mask = check_masked_matrix(W, mask)
     n, d = W.shape
     if method == "PPCA":
         return ppca_impute, {"n_components": list(range(1, d))}
+    if method == "KNNImputer":
+        neighbours = [k for k in (1, 2, 3, 5, 10, 20, 50) if k < n]
+        return peers.knn_impute, {"n_neighbors": neighbours, "weights": list(peers.KNN_WEIGHTS)}
+    if method == "IterativeImputer":
+        return peers.iterative_impute, {}
+    if method == "missForest":
+        return peers.missforest_impute, {"max_features": [1 / 3, 1.0]}
+    if method == "SoftImpute":
+        filled = mean_fill(W, mask)
+        top = float(np.linalg.svd(filled - filled.mean(axis=0), compute_uv=False)[0])
+        return peers.soft_impute, {"lam": [float(f * top) for f in peers.SOFT_IMPUTE_FRACTIONS]}
     gammas = [float(g) for g in np.asarray(GAMMA_MULTIPLES) * median_gamma(W, mask)]
     if method == "PKPCA":
         return pkpca_impute, {"gamma": gammas, "n_components": [None] + [q for q in (2, 4, 8) if q < n]}
     if method == "RKPCA":
         return rkpca_impute, {"gamma": gammas, "n_components": [q for q in (2, 4, 7, 10) if q < n]}
-    raise ValueError(f"method must be one of 'PPCA', 'PKPCA', 'RKPCA'; got {method!r}")
+    known = ("PPCA", "PKPCA", "RKPCA", "KNNImputer", "IterativeImputer", "missForest", "SoftImpute")
+    raise ValueError(f"method must be one of {', '.join(map(repr, known))}; got {method!r}")

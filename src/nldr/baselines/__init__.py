@@ -1,8 +1,19 @@
-"""Baselines the paper compares against: KPCA (Table 1) and imputation methods (Table 2)."""
+"""Baselines the paper compares against: KPCA (Table 1) and imputation methods (Table 2); and the
+imputers people already use (:mod:`.peers`: KNN, chained equations, missForest, SoftImpute; not in
+the paper)."""
 
 from .kpca import kpca_spectrum, truncated_kernel
 from .mean import mean_impute
 from .nearest_neighbour import NearestNeighbourResult, nearest_neighbour_impute
+from .peers import (
+    SoftImputeResult,
+    iterative_impute,
+    knn_impute,
+    missforest_impute,
+    singular_value_threshold,
+    soft_impute,
+    soft_impute_objective,
+)
 from .pkpca import PKPCAResult, pkpca_impute, pkpca_objective
 from .ppca import PPCAResult, ppca_impute, ppca_log_likelihood
 from .rkpca import KernelSubspace, RKPCAResult, fit_kernel_subspace, rkpca_energy, rkpca_impute
@@ -24,4 +35,11 @@ __all__ = [
     "fit_kernel_subspace",
     "rkpca_energy",
     "rkpca_impute",
+    "knn_impute",
+    "iterative_impute",
+    "missforest_impute",
+    "SoftImputeResult",
+    "soft_impute",
+    "singular_value_threshold",
+    "soft_impute_objective",
 ]

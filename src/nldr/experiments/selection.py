@@ -11,7 +11,8 @@ seed + k). Rows, per job:
 - ``Ours (oracle grid point)``: the grid point with the lowest error against the complete matrix.
   It sees ground truth, so it is a reference for how good the grid can be, never a result;
 - ``<baseline> (CV)``: each baseline with a knob, its knob chosen on the same folds
-  (:func:`nldr.model_selection.select_imputer`).
+  (:func:`nldr.model_selection.select_imputer`), and the peers of issue 16 the same way
+  (:func:`nldr.experiments.table2.fit_peer`; IterativeImputer has no knob and is fitted once).
 
 The error is Table 2's: the sum of squared errors over the whole n x d matrix.
 """
@@ -27,10 +28,10 @@ from .. import paper as paper_numbers
 from ..baselines import mean_impute
 from ..data_terms import MaskedLeastSquares
 from ..datasets import load_oil
-from ..model_selection import baseline_grid, median_gamma, select_imputer, select_regularizer
+from ..model_selection import median_gamma, select_regularizer
 from ..regularizer import minimize_regularized
 from .base import JobOutput, summary_stats
-from .table2 import Table2, random_mask
+from .table2 import PEER_ROWS, Table2, fit_peer, random_mask
 
 __all__ = ["Selection", "METHODS"]
 
@@ -38,7 +39,7 @@ PAPER = "Ours (paper values)"
 CV = "Ours (CV)"
 ORACLE = "Ours (oracle grid point)"
 #: Row order of the table.
-METHODS = (PAPER, CV, ORACLE, "PPCA (CV)", "PKPCA (CV)", "RKPCA (CV)")
+METHODS = (PAPER, CV, ORACLE, "PPCA (CV)", "PKPCA (CV)", "RKPCA (CV)") + PEER_ROWS
 
 
 class Selection(Table2):
@@ -123,13 +124,9 @@ class Selection(Table2):
         record(ORACLE, best[3], time.perf_counter() - start, tau=best[1], gamma=best[2])
 
         for method in settings["baselines"]:
-            impute, param_grid = baseline_grid(method, W, mask)
             start = time.perf_counter()
-            chosen = select_imputer(
-                impute, W, mask, param_grid, n_folds=settings["n_folds"], random_state=seed
-            )
-            X_hat = getattr(chosen.result_, "x", chosen.result_)
-            record(f"{method} (CV)", X_hat, time.perf_counter() - start, params=repr(chosen.best_params_))
+            fit = fit_peer(method, W, mask, n_folds=settings["n_folds"], seed=seed)
+            record(fit["method"], fit["x"], time.perf_counter() - start, params=fit["params"])
 
         cv = sel.cv_results_
         arrays = {
@@ -171,6 +168,7 @@ class Selection(Table2):
             f"2's masks), sum of squared errors, mean ± sd over {s['n_masks']} masks per p. Ours with the "
             f"paper's gamma and tau; with tau and gamma chosen by hold-out CV on the observed entries "
             f"({folds}, {rule}); and the best grid point on ground truth (an oracle, a reference only). "
-            f"Baselines with their knob chosen by {s['n_folds']}-fold CV (a partition of the observed "
-            "entries)."
+            f"Baselines and peers (KNNImputer, IterativeImputer, SoftImpute, missForest; not in the paper) "
+            f"with their knob chosen by {s['n_folds']}-fold CV (a partition of the observed entries; "
+            "IterativeImputer has none)."
         )

@@ -1,8 +1,14 @@
-"""Table 2: matrix completion on oil flow, the regularizer against five baselines.
+"""Table 2: matrix completion on oil flow, the regularizer against five baselines (and, not in the
+paper, against the imputers people use).
 
 One run = one missing probability p and one seeded mask; every method completes the same masked
 matrix, starting (where it iterates) from mean imputation. The error is the sum of squared errors
 over the whole n x d matrix (docs/REPRODUCTION.md#table-2-error explains why not the root mean square).
+
+The peers (issue 16; :mod:`nldr.baselines.peers`) follow the paper's rows: scikit-learn's KNNImputer
+and IterativeImputer, missForest and SoftImpute, each with its knob chosen by hold-out CV on the
+observed entries of the same mask (:func:`fit_peer`); the config can restrict a costly peer to the
+first masks of each p.
 """
 
 from __future__ import annotations
@@ -18,13 +24,30 @@ from .._validation import as_float_matrix
 from ..baselines import mean_impute, nearest_neighbour_impute, pkpca_impute, ppca_impute, rkpca_impute
 from ..data_terms import MaskedLeastSquares
 from ..datasets import load_oil
+from ..model_selection import baseline_grid, select_imputer
 from ..regularizer import minimize_regularized
 from .base import Experiment, Job, JobOutput, summary_stats
 
-__all__ = ["METHODS", "random_mask", "run_mask", "summarise", "Table2", "Table2Full"]
+__all__ = [
+    "METHODS",
+    "PEERS",
+    "PEER_ROWS",
+    "random_mask",
+    "run_mask",
+    "fit_peer",
+    "run_peers",
+    "summarise",
+    "Table2",
+    "Table2Full",
+]
 
 # Paper order; "Ours" is the regularizer of Algorithm 1 with the masked least-squares data term.
 METHODS = ("mean", "1-NN", "PPCA", "PKPCA", "RKPCA", "Ours")
+#: The peers (not in the paper), names of :func:`nldr.model_selection.baseline_grid`.
+PEERS = ("KNNImputer", "IterativeImputer", "SoftImpute", "missForest")
+#: Their rows, in this order after the paper's: "(CV)" where a knob was chosen by CV (IterativeImputer
+#: has none).
+PEER_ROWS = ("KNNImputer (CV)", "IterativeImputer", "SoftImpute (CV)", "missForest (CV)")
 
 
 def random_mask(shape: tuple[int, int], p: float, seed: int) -> np.ndarray:
@@ -142,6 +165,94 @@ def run_mask(
     return pd.DataFrame(rows)
 
 
+def fit_peer(method: str, W, mask, *, n_folds: int, seed: int) -> dict:
+    """Complete W with a method of :func:`nldr.model_selection.baseline_grid`, its knob by hold-out CV.
+
+    Parameters
+    ----------
+    method : a name :func:`~nldr.model_selection.baseline_grid` knows (a peer or a baseline with a knob).
+    W : array, shape (n, d), NaN (or anything) where ``mask`` is False.
+    mask : bool array, shape (n, d), True where observed.
+    n_folds : folds of :func:`~nldr.model_selection.select_imputer`.
+    seed : seed of the folds (the mask's seed, so every method of a job sees the same folds).
+
+    Returns
+    -------
+    dict with ``method`` (``"<method> (CV)"``, or the bare name when the grid has no knob: then the
+    method is fitted once, without CV), ``x`` (the completed (n, d) matrix), ``converged``, ``n_iter``
+    (the refit's, where the method reports them, else True and 0) and ``params`` (the chosen knob, repr).
+    """
+    impute, grid = baseline_grid(method, W, mask)
+    if grid:
+        chosen = select_imputer(impute, W, mask, grid, n_folds=n_folds, random_state=seed)
+        output, label, params = chosen.result_, f"{method} (CV)", repr(chosen.best_params_)
+    else:
+        output, label, params = impute(np.where(mask, W, np.nan), mask), method, "{}"
+    return {
+        "method": label,
+        "x": np.asarray(getattr(output, "x", output), dtype=np.float64),
+        "converged": bool(getattr(output, "success", True)),
+        "n_iter": int(getattr(output, "nit", 0)),
+        "params": params,
+    }
+
+
+def run_peers(
+    X,
+    *,
+    p: float,
+    seed: int,
+    methods=PEERS,
+    n_folds: int = 5,
+    progress: Callable[[str], None] | None = None,
+) -> pd.DataFrame:
+    """Complete the mask of :func:`run_mask` (same p and seed) with each peer, knobs by CV.
+
+    Parameters
+    ----------
+    X : (n, d) the complete ground-truth matrix.
+    p, seed : the mask's missing probability and seed (also the seed of the CV folds).
+    methods : which of :data:`PEERS`.
+    n_folds : hold-out folds of the observed entries.
+    progress : optional callback receiving one line per finished method.
+
+    Returns
+    -------
+    DataFrame with :func:`run_mask`'s columns (``seconds``: CV and refit) and ``params``, the chosen knob.
+    """
+    X = as_float_matrix(X, "X")
+    unknown = set(methods) - set(PEERS)
+    if unknown:
+        raise ValueError(f"unknown peers {sorted(unknown)}; choose from {PEERS}")
+    mask = random_mask(X.shape, p, seed)
+    W = np.where(mask, X, np.nan)
+    rows = []
+    for method in methods:
+        start = time.perf_counter()
+        fit = fit_peer(method, W, mask, n_folds=n_folds, seed=seed)
+        seconds = time.perf_counter() - start
+        sse = float(np.sum((fit["x"] - X) ** 2))
+        if not np.isfinite(sse):
+            raise FloatingPointError(f"{method} returned non-finite values (p={p}, seed={seed})")
+        rows.append(
+            {
+                "p": p,
+                "seed": seed,
+                "method": fit["method"],
+                "sse": sse,
+                "available": True,
+                "converged": fit["converged"],
+                "n_iter": fit["n_iter"],
+                "seconds": seconds,
+                "n_missing": int((~mask).sum()),
+                "params": fit["params"],
+            }
+        )
+        if progress is not None:
+            progress(f"p={p} seed={seed} {fit['method']:16s} sse={sse:9.3f} {seconds:6.2f}s {fit['params']}")
+    return pd.DataFrame(rows)
+
+
 def summarise(runs: pd.DataFrame) -> pd.DataFrame:
     """Aggregate :func:`run_mask` frames into Table 2's tidy rows (setting, method, metric, value).
 
@@ -151,7 +262,7 @@ def summarise(runs: pd.DataFrame) -> pd.DataFrame:
     """
     rows = []
     for p in sorted(runs["p"].unique()):
-        for method in [m for m in METHODS if m in set(runs["method"])]:
+        for method in [m for m in METHODS + PEER_ROWS if m in set(runs["method"])]:
             group = runs[(runs["p"] == p) & (runs["method"] == method)]
             ok = group[group["available"]]
             stats = {
@@ -164,8 +275,36 @@ def summarise(runs: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["setting", "method", "metric", "value"])
 
 
+_PEER_WORDS = {
+    "KNNImputer": "scikit-learn's KNNImputer (neighbours, weights)",
+    "IterativeImputer": "IterativeImputer with BayesianRidge (no knob, fitted once)",
+    "SoftImpute": "SoftImpute, nuclear-norm completion (lambda)",
+    "missForest": "missForest, IterativeImputer with extra trees (max_features)",
+}
+
+
+def peers_caption(settings: Mapping) -> str:
+    """The caption's sentence on the peers' rows (empty without peers)."""
+    peers = settings["peers"]
+    if not peers["methods"]:
+        return ""
+    names = "; ".join(_PEER_WORDS[m] for m in peers["methods"])
+    limits = [
+        f"{m} on the first {k} masks per p only (its CV is the costly part)"
+        for m, k in peers.get("masks", {}).items()
+        if m in peers["methods"] and k < settings["n_masks"]
+    ]
+    return (
+        f" Rows after Ours are not in the paper: {names}; each knob chosen by {peers['n_folds']}-fold "
+        "hold-out CV on the observed entries of the same mask"
+        + (f"; {'; '.join(limits)}" if limits else "")
+        + "."
+    )
+
+
 class Table2(Experiment):
-    """Table 2: completion of the first oil-flow training rows, the regularizer against five baselines."""
+    """Table 2: completion of the first oil-flow training rows, the regularizer against five baselines
+    (and the peers, not in the paper)."""
 
     name = "table2"
     title = "Matrix completion on oil flow: the regularizer against five baselines"
@@ -178,7 +317,7 @@ class Table2(Experiment):
     def jobs(self, config):
         s = self.settings(config)
         return [
-            Job(f"p{p:g}_seed{s['seed'] + k}", {"p": p, "seed": s["seed"] + k})
+            Job(f"p{p:g}_seed{s['seed'] + k}", {"p": p, "seed": s["seed"] + k, "mask": k})
             for p in s["p"]
             for k in range(s["n_masks"])
         ]
@@ -197,6 +336,19 @@ class Table2(Experiment):
         for name in ("PKPCA", "RKPCA"):
             params.setdefault(name, {}).setdefault("gamma", settings["gamma"])
         rows = run_mask(X, p=job.params["p"], seed=job.params["seed"], params=params, progress=progress)
+        peers = settings["peers"]
+        limits = peers.get("masks", {})
+        chosen = [m for m in peers["methods"] if job.params["mask"] < limits.get(m, job.params["mask"] + 1)]
+        if chosen:
+            more = run_peers(
+                X,
+                p=job.params["p"],
+                seed=job.params["seed"],
+                methods=chosen,
+                n_folds=peers["n_folds"],
+                progress=progress,
+            )
+            rows = pd.concat([rows, more], ignore_index=True)
         return JobOutput(rows=rows)
 
     def summarise(self, runs):
@@ -207,7 +359,7 @@ class Table2(Experiment):
         return (
             f"Table 2: oil-flow completion (first {s['n_rows']} training rows), sum of squared errors over "
             f"the whole matrix, mean ± sd over {s['n_masks']} seeded masks per p; paper in parentheses, "
-            "– where not available."
+            "– where not available." + peers_caption(s)
         )
 
 
@@ -229,5 +381,5 @@ class Table2Full(Table2):
         return (
             f"Table 2 on {s['n_rows']} oil-flow training rows (not in the paper, which uses the first "
             f"{config['table2']['n_rows']}): sum of squared errors over the whole matrix, mean ± sd over "
-            f"{s['n_masks']} seeded masks per p."
+            f"{s['n_masks']} seeded masks per p." + peers_caption(s)
         )
