@@ -180,6 +180,12 @@ def _reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver="auto
         d = D.ravel()
         value = data_term.value(S) + 0.5 * rho * float(d @ d) + tau * float(l.sum())
         G = np.multiply(D, rho, out=D)
+        if not center:
+            # G is exactly symmetric (K and UL UL^T are: numpy forms A A^T by a symmetric rank-k
+            # update), so rbf_kernel_vjp's (G + G^T) o K is 2 G o K, here formed in place: same bits.
+            M = np.multiply(G, K_rbf, out=G)
+            vjp = (-4.0 * gamma) * (M.sum(axis=1)[:, None] * S - M @ S)
+            return value, data_term.gradient(S) + vjp, (lam, U, l)
     if center:
         G = center_kernel(G)  # H G H (G symmetric)
     grad = data_term.gradient(S) + rbf_kernel_vjp(S, K_rbf, G, gamma)
