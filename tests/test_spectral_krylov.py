@@ -9,7 +9,7 @@ from threadpoolctl import threadpool_limits
 from nldr._spectral import KRYLOV_MAX_FRACTION, krylov_eigenpairs, leading_eigenpairs
 from nldr.data_terms import MaskedLeastSquares
 from nldr.kernels import rbf_kernel
-from nldr.regularizer import _RankHint, minimize_regularized, reduced_energy
+from nldr.regularizer import KRYLOV_AUTO_FRACTION, _RankHint, minimize_regularized, reduced_energy
 from nldr.robust_kpca import closed_form_rank_penalty, rank_penalty_threshold
 
 
@@ -113,7 +113,7 @@ def test_auto_chooses_krylov_only_for_small_ranks_at_large_n():
     assert hint.solver("auto", 1000) == "krylov"
     assert hint.solver("auto", 200) == "auto"  # below PARTIAL_MIN_N: the full decomposition
     assert hint.solver("full", 1000) == "full"
-    hint.rank = 300
+    hint.rank = int(KRYLOV_AUTO_FRACTION * 1000) + 1
     assert hint.solver("auto", 1000) == "auto"
 
 
@@ -125,7 +125,7 @@ def test_auto_solve_with_krylov_reproduces_the_reference_solve(completion):
     ref = minimize_regularized(term, S0, eigensolver="full", **kw)
     new = minimize_regularized(term, S0, **kw)
     assert ref.success and new.success
-    assert new.rank_history[-1] <= 0.12 * X.shape[0]  # the Lanczos path was taken throughout
+    assert new.rank_history[-1] <= KRYLOV_AUTO_FRACTION * X.shape[0]  # Lanczos throughout
     np.testing.assert_array_equal(new.rank_history, ref.rank_history)
     # Both stop once an iteration lowers the energy by less than ftol = 1e-10 relative (as in
     # tests/test_regularizer.py's partial-path test).
