@@ -61,7 +61,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from ._spectral import check_eigensolver, spectrum
+from ._spectral import PARTIAL_MIN_N, check_eigensolver, spectrum
 from ._validation import as_float_matrix, check_count, check_positive
 from .data_terms import DataTerm, check_start
 from .kernels import center_kernel, rbf_kernel_vjp, squared_distances
@@ -135,11 +135,25 @@ def _rbf(S: np.ndarray, gamma: float) -> np.ndarray:
     return np.exp(-gamma * squared_distances(S))
 
 
+#: "auto" switches to Lanczos ("krylov") once n >= PARTIAL_MIN_N and the previous evaluation kept at
+#: most this fraction of the spectrum. At n = 1000 (one thread) Lanczos took 13 / 45 / 72-80 ms for
+#: 24 / 97 / 141 eigenpairs against 61 / 85 / 101 ms for MRRR; with 0.16 rather than 0.12 the last
+#: stage of a 1000-row Table 2 solve (rank 143) also takes it, 10 % less CPU (bench_scale.py).
+KRYLOV_AUTO_FRACTION = 0.16
+
+
 class _RankHint:
     """The rank of the previous evaluation, so "auto" can skip a partial decomposition that won't pay."""
 
     def __init__(self):
         self.rank: int | None = None
+
+    def solver(self, eigensolver: str, n: int) -> str:
+        """The eigensolver for this evaluation: "auto" becomes "krylov" when the last rank was small."""
+        if eigensolver == "auto" and n >= PARTIAL_MIN_N and self.rank is not None:
+            if self.rank <= KRYLOV_AUTO_FRACTION * n:
+                return "krylov"
+        return eigensolver
 
 
 def _reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver="auto", hint=None):
@@ -158,6 +172,8 @@ def _reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver="auto
         value = data_term.value(S) + 0.5 * rho * float(gap @ gap) + tau * float(l.sum())
         G = (U * (rho * gap)) @ U.T  # dE/dK = rho (K - C*^T C*), see the maintenance note
     else:
+        if hint is not None:
+            eigensolver = hint.solver(eigensolver, K.shape[0])
         lam, U, l = spectrum(K, tau, rho, eigensolver, None if hint is None else hint.rank)
         if hint is not None:
             hint.rank = lam.size
@@ -166,6 +182,12 @@ def _reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver="auto
         d = D.ravel()
         value = data_term.value(S) + 0.5 * rho * float(d @ d) + tau * float(l.sum())
         G = np.multiply(D, rho, out=D)
+        if not center:
+            # G is exactly symmetric (K and UL UL^T are: numpy forms A A^T by a symmetric rank-k
+            # update), so rbf_kernel_vjp's (G + G^T) o K is 2 G o K, here formed in place: same bits.
+            M = np.multiply(G, K_rbf, out=G)
+            vjp = (-4.0 * gamma) * (M.sum(axis=1)[:, None] * S - M @ S)
+            return value, data_term.gradient(S) + vjp, (lam, U, l)
     if center:
         G = center_kernel(G)  # H G H (G symmetric)
     grad = data_term.gradient(S) + rbf_kernel_vjp(S, K_rbf, G, gamma)
@@ -202,9 +224,10 @@ def reduced_energy(
         Penalty weight.
     center : bool, default=False
         Use the double-centred kernel H K H.
-    eigensolver : {"auto", "partial", "full"}, default="auto"
+    eigensolver : {"auto", "partial", "krylov", "full"}, default="auto"
         "full": every eigenpair of K (the reference). "partial": only those above the cubic's
-        threshold, the only ones C keeps. "auto": partial for n >= 300. Same value up to rounding.
+        threshold, the only ones C keeps (MRRR). "krylov": the same ones by Lanczos. "auto": partial
+        for n >= 300. Same value up to rounding.
 
     Returns
     -------
@@ -230,7 +253,7 @@ def optimal_kernel_factor(
     S : array, shape (n_samples, n_features)
     gamma, tau, rho : float > 0
     center : bool, default=False
-    eigensolver : {"auto", "partial", "full"}, default="auto"
+    eigensolver : {"auto", "partial", "krylov", "full"}, default="auto"
         See :func:`nldr.robust_kpca.closed_form_rank_penalty`.
 
     Returns
@@ -409,11 +432,15 @@ def penalty_method(S, rhos, stage, stage_end, *, start: float) -> RegularizerRes
     )
 
 
-def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tol, gtol, eigensolver, start):
-    """One L-BFGS solve per penalty weight, warm-started; the closed-form C after each. No validation."""
+def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, eigensolver, start):
+    """One L-BFGS solve per penalty weight, warm-started; the closed-form C after each. No validation.
+
+    ``tols`` is ``(tol of every stage but the last, tol of the last)``.
+    """
     hint = _RankHint()
 
     def stage(S, rho, energies):
+        tol = tols[1] if rho == rhos[-1] else tols[0]
         return _stage_reduced(
             S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint
         )
@@ -438,6 +465,7 @@ def minimize_regularized(
     max_inner: int | None = None,
     tol: float = 1e-10,
     gtol: float = 1e-6,
+    stage_tol: float | None = None,
     eigensolver: str = "auto",
     isolation_guard: bool = True,
 ) -> RegularizerResult:
@@ -470,12 +498,19 @@ def minimize_regularized(
         ``(E_k - E_{k+1}) / max(|E_k|, |E_{k+1}|, 1) <= tol``.
     gtol : float > 0, default=1e-6
         L-BFGS also stops when the largest gradient entry is below gtol.
-    eigensolver : {"auto", "partial", "full"}, default="auto"
+    stage_tol : float > 0, optional
+        ``tol`` of every stage but the last; None (default) means ``tol``. The earlier stages only
+        provide the next one's starting point, so a looser value (1e-7) saves about a third of the
+        iterations; but the problem is not convex, and a start further from the previous stage's
+        minimum can lead to another local minimum (docs/PERFORMANCE.md, bench_scale.py).
+    eigensolver : {"auto", "partial", "krylov", "full"}, default="auto"
         The C-step's decomposition. Only eigenpairs above the cubic's threshold survive, so
         "partial" computes just those (LAPACK MRRR) and forms dE/dK = rho (K - C^T C) from them;
+        "krylov" finds the same ones by Lanczos (ARPACK), cheaper when they are few;
         "full" decomposes the whole kernel (the original implementation, kept as the reference);
-        "auto" uses "partial" for n >= 300 unless the previous evaluation kept more than a quarter
-        of the spectrum. The three agree to rounding (tests/test_regularizer.py).
+        "auto" uses "full" below n = 300; from there "krylov" while the previous evaluation kept at
+        most :data:`KRYLOV_AUTO_FRACTION` of the spectrum, "partial" up to a quarter, else "full".
+        All agree to rounding (tests/test_regularizer.py, tests/test_spectral_krylov.py).
     isolation_guard : bool, default=True
         Start the schedule at ``max(rho0, isolation_safe_rho0(tau))`` (and end it no lower), so that
         the first stage cannot push unobserved coordinates away from the data (module maintenance
@@ -502,7 +537,9 @@ def minimize_regularized(
         rhos = penalty_schedule(floor, rho_growth, max(rho_max, floor))
     max_inner = check_count(3000 if max_inner is None else max_inner, "max_inner")
     tol, gtol = check_positive(tol, "tol"), check_positive(gtol, "gtol")
+    stage_tol = tol if stage_tol is None else check_positive(stage_tol, "stage_tol")
     eigensolver = check_eigensolver(eigensolver)
     return _run_stages(
-        S.copy(), data_term, gamma, tau, bool(center), rhos, max_inner, tol, gtol, eigensolver, start
+        S.copy(), data_term, gamma, tau, bool(center), rhos, max_inner, (stage_tol, tol), gtol,
+        eigensolver, start,
     )

@@ -125,9 +125,10 @@ def closed_form_rank_penalty(K, tau: float, rho: float, *, eigensolver: str = "a
         Weight of the trace norm of C (equal to the trace norm of the feature-space data).
     rho : float > 0
         Weight of the kernel-mismatch penalty. Only tau / rho changes the minimiser.
-    eigensolver : {"auto", "partial", "full"}, default "auto"
+    eigensolver : {"auto", "partial", "krylov", "full"}, default "auto"
         How to decompose K. Only eigenpairs above :func:`rank_penalty_threshold` enter C, so
-        "partial" computes just those (LAPACK MRRR); "full" computes every eigenpair; "auto" picks
+        "partial" computes just those (LAPACK MRRR), "krylov" by Lanczos; "full" computes every
+        eigenpair; "auto" picks
         "partial" for n >= 300 (see the maintenance notes of :mod:`nldr._spectral`). All give the same C up to
         rounding.
 
@@ -179,11 +180,12 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         Kernel-mismatch weight; only tau / rho matters.
     center : bool, default=True
         Centre the kernel in feature space before the decomposition (as kernel PCA does).
-    eigensolver : {"auto", "partial", "full"}, default="auto"
+    eigensolver : {"auto", "partial", "krylov", "full"}, default="auto"
         How to decompose the training kernel. "full": every eigenpair (``numpy.linalg.eigh``);
-        "partial": only those above :func:`rank_penalty_threshold`, the only ones kept; "auto":
-        "partial" for n_samples >= 300 (see the maintenance notes of :mod:`nldr._spectral`). The
-        three agree up to rounding.
+        "partial": only those above :func:`rank_penalty_threshold`, the only ones kept; "krylov": the
+        same by Lanczos; "auto":
+        "partial" for n_samples >= 300 (see the maintenance notes of :mod:`nldr._spectral`). All agree
+        up to rounding.
 
     Attributes
     ----------
