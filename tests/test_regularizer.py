@@ -409,3 +409,32 @@ def test_the_isolation_guard_is_on_by_default():
     unguarded = minimize_regularized(term, S0, isolation_guard=False, **options)
     np.testing.assert_array_equal(default.x, guarded.x)
     assert not np.array_equal(default.x, unguarded.x)
+
+
+class _ThreadSpy(MaskedLeastSquares):
+    """A data term that records the BLAS thread count while the solver evaluates it."""
+
+    seen: set
+
+    def gradient(self, S):
+        from threadpoolctl import threadpool_info
+
+        self.seen |= {info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"}
+        return super().gradient(S)
+
+
+@pytest.mark.parametrize("auto, expected", [("1", {1}), ("0", {2})])
+def test_small_problems_run_on_one_blas_thread_unless_switched_off(monkeypatch, auto, expected):
+    """nldr._threads: below SMALL_PROBLEM_ROWS samples the solver uses one BLAS thread whatever the
+    caller set (two threads on a 100-row problem were 100x slower on a busy machine, issue 20);
+    NLDR_AUTO_THREADS=0 leaves the caller's setting."""
+    monkeypatch.setenv("NLDR_AUTO_THREADS", auto)
+    rng = np.random.default_rng(5)
+    X = rng.random((40, 4))
+    mask = rng.random(X.shape) > 0.2
+    term = _ThreadSpy(np.where(mask, X, np.nan), mask)
+    term.seen = set()
+    S0 = np.where(mask, X, np.nanmean(np.where(mask, X, np.nan), axis=0))
+    with threadpool_limits(2, user_api="blas"):
+        minimize_regularized(term, S0, gamma=1.0, tau=0.1, rho_max=10.0, max_inner=20)
+    assert term.seen == expected

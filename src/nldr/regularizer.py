@@ -62,6 +62,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from ._spectral import PARTIAL_MIN_N, check_eigensolver, spectrum
+from ._threads import blas_threads_for
 from ._validation import as_float_matrix, check_count, check_positive
 from .data_terms import DataTerm, check_start
 from .kernels import center_kernel, rbf_kernel_vjp, squared_distances
@@ -539,7 +540,8 @@ def minimize_regularized(
     tol, gtol = check_positive(tol, "tol"), check_positive(gtol, "gtol")
     stage_tol = tol if stage_tol is None else check_positive(stage_tol, "stage_tol")
     eigensolver = check_eigensolver(eigensolver)
-    return _run_stages(
-        S.copy(), data_term, gamma, tau, bool(center), rhos, max_inner, (stage_tol, tol), gtol,
-        eigensolver, start,
-    )
+    with blas_threads_for(S.shape[0]):  # one BLAS thread on small problems (nldr._threads)
+        return _run_stages(
+            S.copy(), data_term, gamma, tau, bool(center), rhos, max_inner, (stage_tol, tol), gtol,
+            eigensolver, start,
+        )

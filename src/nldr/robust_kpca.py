@@ -21,6 +21,7 @@ from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ._spectral import EIGENSOLVERS, check_eigensolver, cubic_threshold, leading_eigenpairs, shrink, spectrum
+from ._threads import blas_threads_for
 from ._validation import check_positive, check_symmetric_kernel
 from .kernels import center_cross_kernel, center_kernel, rbf_kernel
 
@@ -226,10 +227,11 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         tau = check_positive(self.tau, "tau")
         rho = check_positive(self.rho, "rho")
         eigensolver = check_eigensolver(self.eigensolver)
-        K = self._kernel(X)
-        self.kernel_column_means_ = K.mean(axis=0)
-        Kc = center_kernel(K) if self.center else K
-        lam, U, l = spectrum(Kc, tau, rho, eigensolver)
+        with blas_threads_for(X.shape[0]):  # one BLAS thread on small problems (nldr._threads)
+            K = self._kernel(X)
+            self.kernel_column_means_ = K.mean(axis=0)
+            Kc = center_kernel(K) if self.center else K
+            lam, U, l = spectrum(Kc, tau, rho, eigensolver)
         k = int(np.count_nonzero(l))
         if k == 0:
             warnings.warn(
