@@ -417,14 +417,18 @@ class _ThreadSpy(MaskedLeastSquares):
     seen: set
 
     def gradient(self, S):
-        from threadpoolctl import threadpool_info
-
-        self.seen |= {info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"}
+        self.seen |= _blas_threads()
         return super().gradient(S)
 
 
-@pytest.mark.parametrize("auto, expected", [("1", {1}), ("0", {2})])
-def test_small_problems_run_on_one_blas_thread_unless_switched_off(monkeypatch, auto, expected):
+def _blas_threads():
+    from threadpoolctl import threadpool_info
+
+    return {info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"}
+
+
+@pytest.mark.parametrize("auto", ["1", "0"])
+def test_small_problems_run_on_one_blas_thread_unless_switched_off(monkeypatch, auto):
     """nldr._threads: below SMALL_PROBLEM_ROWS samples the solver uses one BLAS thread whatever the
     caller set (two threads on a 100-row problem were 100x slower on a busy machine, issue 20);
     NLDR_AUTO_THREADS=0 leaves the caller's setting."""
@@ -436,5 +440,7 @@ def test_small_problems_run_on_one_blas_thread_unless_switched_off(monkeypatch, 
     term.seen = set()
     S0 = np.where(mask, X, np.nanmean(np.where(mask, X, np.nan), axis=0))
     with threadpool_limits(2, user_api="blas"):
+        callers = _blas_threads()  # 2, or 1 for a single-threaded BLAS another package loaded
         minimize_regularized(term, S0, gamma=1.0, tau=0.1, rho_max=10.0, max_inner=20)
-    assert term.seen == expected
+    assert 2 in callers
+    assert term.seen == ({1} if auto == "1" else callers)
