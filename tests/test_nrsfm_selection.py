@@ -13,7 +13,7 @@ from nldr.nrsfm import (
     OrthographicReprojection,
     e3d,
     initialize_cameras,
-    kernel_camera_alternation,
+    kernel_with_camera_refinement,
     select_kernel,
     select_tnh_tau,
     tnh_with_camera_refinement,
@@ -195,7 +195,7 @@ def test_tnh_scores_are_cold_start_fold_solves_and_cv_beats_an_extreme_tau():
         W, mask, tnh=sel, taus=[1e-4], width_multiples=[1.0], camera_options={"max_outer": 3}, **SCHEDULE
     )
     assert ksel.folds_ is sel.folds_
-    by_hand = kernel_camera_alternation(
+    by_hand = kernel_with_camera_refinement(
         W,
         mask,
         sel.result_.R,

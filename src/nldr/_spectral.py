@@ -53,6 +53,7 @@ import scipy.linalg
 import scipy.sparse.linalg
 
 __all__ = [
+    "shrink_singular_values",
     "EIGENSOLVERS",
     "PARTIAL_MIN_N",
     "PARTIAL_MAX_FRACTION",
@@ -179,3 +180,16 @@ def spectrum(K: np.ndarray, tau: float, rho: float, eigensolver: str = "full", e
     else:
         lam, U = leading_eigenpairs(K, cubic_threshold(tau, rho), eigensolver, expected)
     return lam, U, shrink(lam, tau, rho)
+
+
+def shrink_singular_values(Y: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+    """``U (S - t)_+ V^T`` for ``Y = U S V^T`` (thin SVD), the proximal map of ``t ||.||_*``.
+
+    Returns the (m, n) result and its nonzero singular values ``s_i - t > 0`` (descending): their sum
+    is its nuclear norm, their count its rank. Used by TNH (:mod:`nldr.nrsfm.svt`) and SoftImpute
+    (:mod:`nldr.baselines.peers`).
+    """
+    U, s, Vt = np.linalg.svd(Y, full_matrices=False)
+    s = s - t
+    k = int(np.count_nonzero(s > 0))  # s is descending, so the kept values come first
+    return (U[:, :k] * s[:k]) @ Vt[:k], s[:k]

@@ -50,6 +50,7 @@ from sklearn.experimental import enable_iterative_imputer  # noqa: F401
 from sklearn.impute import IterativeImputer, KNNImputer
 from sklearn.linear_model import BayesianRidge
 
+from .._spectral import shrink_singular_values
 from .._validation import check_count, check_positive
 from ..result import SolverResult, status_from
 from ._masked import check_masked_matrix, observed_column_means
@@ -282,10 +283,8 @@ def singular_value_threshold(Y: np.ndarray, lam: float) -> tuple[np.ndarray, int
     Z : array, shape (n, d)
     rank : int, number of singular values of Y above lam
     """
-    U, s, Vt = np.linalg.svd(Y, full_matrices=False)
-    keep = s > lam
-    rank = int(keep.sum())
-    return (U[:, :rank] * (s[:rank] - lam)) @ Vt[:rank], rank
+    Z, kept = shrink_singular_values(Y, lam)
+    return Z, kept.size
 
 
 def soft_impute_objective(Z, W, mask, lam: float) -> float:

@@ -30,7 +30,7 @@ from .. import paper as paper_numbers
 from ..nrsfm import (
     OrthographicReprojection,
     e3d,
-    kernel_camera_alternation,
+    kernel_with_camera_refinement,
     random_visibility_mask,
     select_kernel,
     select_tnh_tau,
@@ -159,7 +159,9 @@ class SelectionNRSfM(MocapExperiment):
             solve_cpu.append(time.process_time() - start)
             record(f"Kernel {width}", res.x, solve_cpu[-1], False, tau=t["tau"], gamma=gamma)
         start = time.process_time()
-        sel = select_kernel(W2d, mask, R=R, tnh_options=tnh_options, **folds, **kernel_grid, **schedule)
+        sel = select_kernel(
+            W2d, mask, R=R, tnh_options=tnh_options, X_start=X_tnh, **folds, **kernel_grid, **schedule
+        )
         cpu = time.process_time() - start
         record(
             CV_KERNEL,
@@ -191,7 +193,7 @@ class SelectionNRSfM(MocapExperiment):
         for width in t["widths"]:
             gamma = WIDTHS[width](tnh.x)
             start = time.process_time()
-            alt = kernel_camera_alternation(
+            alt = kernel_with_camera_refinement(
                 W2d, mask, tnh.R, tnh.x, gamma=gamma, tau=t["tau"], **camera, **kernel_cfg
             )
             solve_cpu.append(time.process_time() - start)

@@ -27,21 +27,19 @@ import pandas as pd
 from .. import paper as paper_numbers
 from .._validation import check_positive
 from ..nrsfm import (
-    OrthographicReprojection,
     camera_error,
     e3d,
     initialize_cameras,
+    kernel_with_camera_refinement,
     random_visibility_mask,
-    refine_cameras_and_shapes,
     stack_to_rows,
     tnh_with_camera_refinement,
     tune_tau,
 )
-from ..regularizer import minimize_regularized
 from .base import JobOutput
 from .mocap import WIDTHS, MocapExperiment, Reconstructions, check_sequence, every_nth_frame, setting_label
 
-__all__ = ["ROW_COLUMNS", "Table4Run", "run_sequence", "tuned_tnh", "kernel_with_camera_refinement", "Table4"]
+__all__ = ["ROW_COLUMNS", "Table4Run", "run_sequence", "tuned_tnh", "Table4"]
 
 ROW_COLUMNS = [
     "sequence",
@@ -251,30 +249,6 @@ def tuned_tnh(W2d, mask, R0, X_gt, *, log10_tau_bounds, xatol, max_outer, tol):
 
     search = tune_tau(tnh_error, log10_bounds=log10_tau_bounds, xatol=xatol)
     return solved[search.tau], search
-
-
-def kernel_with_camera_refinement(W2d, mask, R_start, X_start, *, gamma, tau, max_outer, tol, **options):
-    """The kernel regularizer alternating with the camera LM (the paper's kernel NRSfM with unknown
-    cameras), from the cameras ``R_start`` and shapes ``X_start`` (the tuned TNH's).
-
-    Each shape step runs :func:`~nldr.regularizer.minimize_regularized` (RBF width ``gamma``, weight
-    ``tau``, further ``options`` such as the rho schedule) from the previous shapes, with the data
-    term of the current cameras; :func:`~nldr.nrsfm.refine_cameras_and_shapes` stops when the
-    reprojection error falls by less than ``tol`` (relative) over 3 outer iterations, or after
-    ``max_outer``. Returns its :class:`~nldr.nrsfm.CameraShapeResult` (shapes ``x``, cameras ``R``).
-    """
-    state = {"X": X_start}
-
-    def kernel_shape_step(R):
-        res = minimize_regularized(
-            OrthographicReprojection(W2d, R, mask), state["X"], gamma=gamma, tau=tau, **options
-        )
-        state["X"] = res.x
-        return res.x
-
-    return refine_cameras_and_shapes(
-        W2d, mask, R_start, kernel_shape_step, max_outer=max_outer, tol=tol, window=3
-    )
 
 
 class Table4(MocapExperiment):

@@ -1,12 +1,9 @@
-"""Folds, grids and bookkeeping shared by the hold-out selections of :mod:`nldr.model_selection`."""
+"""Folds, default grids and the fold score of the hold-out selections of :mod:`nldr.model_selection`
+(the bookkeeping they share with NRSfM's selection is in :mod:`nldr._cv`)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
-
 import numpy as np
-import pandas as pd
 
 from .._validation import check_count
 from ..baselines._masked import check_masked_matrix, mean_fill
@@ -17,10 +14,7 @@ __all__ = [
     "GAMMA_MULTIPLES",
     "median_gamma",
     "holdout_folds",
-    "positive_grid",
     "fold_score",
-    "summarise_folds",
-    "run_jobs",
 ]
 
 #: Default tau grid: log-spaced over four decades around the paper's 0.1 (Table 2) and 10 (denoising).
@@ -101,31 +95,6 @@ def holdout_folds(
     return folds
 
 
-def positive_grid(values, name: str) -> np.ndarray:
-    arr = np.atleast_1d(np.asarray(values, dtype=np.float64))
-    if arr.ndim != 1 or arr.size == 0:
-        raise ValueError(f"{name} must be a non-empty 1-d sequence of numbers; got shape {arr.shape}")
-    if not np.all(np.isfinite(arr) & (arr > 0)):
-        raise ValueError(f"{name} must all be finite and > 0; got {arr.tolist()}")
-    return np.unique(arr)
-
-
 def fold_score(X_hat: np.ndarray, W: np.ndarray, hidden: np.ndarray) -> float:
     diff = (X_hat - W)[hidden]
     return float(diff @ diff) / diff.size
-
-
-def summarise_folds(rows: list[dict], keys: Sequence[str]) -> pd.DataFrame:
-    frame = pd.DataFrame(rows)
-    grouped = frame.groupby(list(keys), sort=True)
-    out = grouped["test_error"].agg(mean_test_error="mean", std_test_error="std").reset_index()
-    out["fit_time"] = grouped["fit_time"].mean().to_numpy()
-    return out
-
-
-def run_jobs(jobs: list[tuple[Callable, tuple]], n_jobs: int) -> list:
-    if n_jobs == 1 or len(jobs) == 1:
-        return [fn(*args) for fn, args in jobs]
-    with ProcessPoolExecutor(max_workers=min(n_jobs, len(jobs))) as pool:
-        futures = [pool.submit(fn, *args) for fn, args in jobs]
-        return [f.result() for f in futures]

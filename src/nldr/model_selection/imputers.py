@@ -12,10 +12,11 @@ import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
+from .._cv import run_jobs, summarise_folds
 from .._validation import check_count
 from ..baselines import peers, pkpca_impute, ppca_impute, rkpca_impute
 from ..baselines._masked import check_masked_matrix, mean_fill
-from .folds import GAMMA_MULTIPLES, fold_score, holdout_folds, median_gamma, run_jobs, summarise_folds
+from .folds import GAMMA_MULTIPLES, fold_score, holdout_folds, median_gamma
 
 __all__ = ["ImputerSelection", "select_imputer", "baseline_grid"]
 

@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
+from .._cv import positive_grid, run_jobs, summarise_folds
 from .._validation import check_count, check_positive
 from ..baselines import mean_impute
 from ..baselines._masked import check_masked_matrix, mean_fill
@@ -21,9 +22,6 @@ from .folds import (
     fold_score,
     holdout_folds,
     median_gamma,
-    positive_grid,
-    run_jobs,
-    summarise_folds,
 )
 
 __all__ = ["RegularizerSelection", "select_regularizer"]

@@ -44,13 +44,17 @@ from .selection import (
     KernelSelection,
     TNHTauSelection,
     holdout_reprojection_error,
-    kernel_camera_alternation,
     select_kernel,
     select_tnh_tau,
     visibility_folds,
 )
 from .tnh import TNHResult, TNHSolveError, trace_norm_heuristic
-from .unknown_cameras import TauSearchResult, tnh_with_camera_refinement, tune_tau
+from .unknown_cameras import (
+    TauSearchResult,
+    kernel_with_camera_refinement,
+    tnh_with_camera_refinement,
+    tune_tau,
+)
 
 __all__ = [
     "stack_to_rows",
@@ -73,6 +77,7 @@ __all__ = [
     "refine_cameras_and_shapes",
     "CameraShapeResult",
     "tnh_with_camera_refinement",
+    "kernel_with_camera_refinement",
     "tune_tau",
     "TauSearchResult",
     "visibility_folds",
@@ -81,5 +86,4 @@ __all__ = [
     "TNHTauSelection",
     "select_kernel",
     "KernelSelection",
-    "kernel_camera_alternation",
 ]

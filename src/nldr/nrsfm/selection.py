@@ -38,21 +38,21 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
+from .._cv import positive_grid, run_jobs, summarise_folds
 from .._validation import check_count, check_positive
 from ..kernels import d_max_width, d_med_width
 from ..regularizer import minimize_regularized
-from .camera_refinement import CameraShapeResult, refine_cameras_and_shapes
+from .camera_refinement import CameraShapeResult
 from .factorization import initialize_cameras
 from .reprojection import OrthographicReprojection, check_cameras, check_tracks
 from .tnh import trace_norm_heuristic
-from .unknown_cameras import tnh_with_camera_refinement
+from .unknown_cameras import kernel_with_camera_refinement, tnh_with_camera_refinement
 
 __all__ = [
     "DEFAULT_TNH_TAUS",
@@ -65,7 +65,6 @@ __all__ = [
     "select_tnh_tau",
     "KernelSelection",
     "select_kernel",
-    "kernel_camera_alternation",
 ]
 
 #: TNH tau grid (unit of the tracks squared): 7 log-spaced values over Table 4's search interval [0.1, 100].
@@ -182,28 +181,6 @@ def holdout_reprojection_error(W2d, hidden, R, X) -> float:
     return float(np.sum(residual**2, axis=1)[hidden].mean())
 
 
-def _grid(values, name: str) -> np.ndarray:
-    arr = np.atleast_1d(np.asarray(values, dtype=np.float64))
-    if arr.ndim != 1 or arr.size == 0 or not np.all(np.isfinite(arr) & (arr > 0)):
-        raise ValueError(f"{name} must be a non-empty 1-d sequence of finite numbers > 0; got {values!r}")
-    return np.unique(arr)
-
-
-def _map(fn: Callable, args: list[tuple], n_jobs: int) -> list:
-    if n_jobs == 1 or len(args) == 1:
-        return [fn(*a) for a in args]
-    with ProcessPoolExecutor(max_workers=min(n_jobs, len(args))) as pool:
-        futures = [pool.submit(fn, *a) for a in args]
-        return [f.result() for f in futures]
-
-
-def _summarise(rows: list[dict], keys: list[str]) -> pd.DataFrame:
-    grouped = pd.DataFrame(rows).groupby(keys, sort=True)
-    out = grouped["test_error"].agg(mean_test_error="mean", std_test_error="std").reset_index()
-    out["fit_time"] = grouped["fit_time"].mean().to_numpy()
-    return out
-
-
 # --------------------------------------------------------------------------------------------------
 # TNH's tau with estimated cameras (Table 4)
 # --------------------------------------------------------------------------------------------------
@@ -301,11 +278,11 @@ def select_tnh_tau(
     """
     W, mask = check_tracks(W2d, mask)
     n_jobs = check_count(n_jobs, "n_jobs")
-    taus = _grid(DEFAULT_TNH_TAUS if taus is None else taus, "taus")
+    taus = positive_grid(DEFAULT_TNH_TAUS if taus is None else taus, "taus")
     folds = visibility_folds(mask, n_folds, random_state, holdout_fraction=holdout_fraction)
     W2d = W  # zeros where unobserved
-    per_fold = _map(_tnh_fold, [(W2d, mask & ~h, h, taus, alternation_options) for h in folds], n_jobs)
-    cv = _summarise([row for rows, _ in per_fold for row in rows], ["tau"])
+    per_fold = run_jobs([(_tnh_fold, (W2d, mask & ~h, h, taus, alternation_options)) for h in folds], n_jobs)
+    cv = summarise_folds([row for rows, _ in per_fold for row in rows], ["tau"])
     best = int(np.argmin(cv["mean_test_error"].to_numpy()))
     tau = float(cv["tau"].iloc[best])
     start = time.process_time()
@@ -397,25 +374,6 @@ def _known_camera_start(W2d, R, train, tnh_options):
         return trace_norm_heuristic(W2d, R, train, **tnh_options).x
 
 
-def kernel_camera_alternation(W2d, mask, R_start, X_start, *, gamma, tau, max_outer=20, tol=1e-4, **options):
-    """The kernel regularizer alternating with the camera LM from (``R_start``, ``X_start``): Table 4's
-    kernel stage (the same steps as :func:`nldr.experiments.table4.kernel_with_camera_refinement`).
-
-    Each shape step runs :func:`~nldr.regularizer.minimize_regularized` (RBF ``gamma``, weight ``tau``,
-    further ``options``) from the previous shapes with the current cameras; stops when the
-    reprojection error falls by less than ``tol`` (relative) over 3 outer iterations, or after
-    ``max_outer``. Returns a :class:`~nldr.nrsfm.CameraShapeResult` (shapes ``x``, cameras ``R``).
-    """
-    state = {"X": X_start}
-
-    def shape_step(R):
-        term = OrthographicReprojection(W2d, R, mask)
-        state["X"] = minimize_regularized(term, state["X"], gamma=gamma, tau=tau, **options).x
-        return state["X"]
-
-    return refine_cameras_and_shapes(W2d, mask, R_start, shape_step, max_outer=max_outer, tol=tol, window=3)
-
-
 def select_kernel(
     W2d,
     mask=None,
@@ -430,6 +388,7 @@ def select_kernel(
     random_state=0,
     warm_start: bool = True,
     tnh_options: Mapping | None = None,
+    X_start=None,
     camera_options: Mapping | None = None,
     n_jobs: int = 1,
     **regularizer_options,
@@ -452,7 +411,7 @@ def select_kernel(
     tnh : TNHTauSelection, optional
         Unknown cameras: its folds are reused, each fold starts from that fold's TNH (cameras and shapes)
         at the selected tau and keeps those cameras; the refit starts from ``tnh.result_`` and
-        alternates with the camera LM (:func:`kernel_camera_alternation`, ``camera_options``:
+        alternates with the camera LM (:func:`kernel_with_camera_refinement`, ``camera_options``:
         ``max_outer``, ``tol``).
     taus : sequence of float > 0, optional
         Default :data:`DEFAULT_KERNEL_TAUS`.
@@ -466,6 +425,9 @@ def select_kernel(
         Solve each (fold, width) along tau, smallest first, warm-starting with the last penalty stage.
     tnh_options : mapping, optional
         Options of the known-camera TNH (default: exact fit by ADMM).
+    X_start : array, shape (F, 3P), optional
+        With ``R``: the refit's start, the TNH on every observed point with ``tnh_options``, when the
+        caller has it already (default: computed here).
     n_jobs : int >= 1
         Processes over the folds.
     **regularizer_options
@@ -486,14 +448,16 @@ def select_kernel(
         if key in regularizer_options:
             raise ValueError(f"regularizer option {key!r} is set by select_kernel; remove it")
     n_jobs = check_count(n_jobs, "n_jobs")
-    taus = _grid(DEFAULT_KERNEL_TAUS if taus is None else taus, "taus")
-    multiples = _grid(WIDTH_MULTIPLES if width_multiples is None else width_multiples, "width_multiples")
+    taus = positive_grid(DEFAULT_KERNEL_TAUS if taus is None else taus, "taus")
+    multiples = positive_grid(
+        WIDTH_MULTIPLES if width_multiples is None else width_multiples, "width_multiples"
+    )
     W2d = W
     if R is not None:
         R = check_cameras(R, mask.shape[0])
         tnh_options = dict(tnh_options or {})
         folds = visibility_folds(mask, n_folds, random_state, holdout_fraction=holdout_fraction)
-        starts = _map(_known_camera_start, [(W2d, R, mask & ~h, tnh_options) for h in folds], n_jobs)
+        starts = run_jobs([(_known_camera_start, (W2d, R, mask & ~h, tnh_options)) for h in folds], n_jobs)
         fold_cameras = [R] * len(folds)
     else:
         if tnh.folds_[0].shape != mask.shape or np.any(tnh.folds_[0] & ~mask):
@@ -505,14 +469,19 @@ def select_kernel(
         (W2d, mask & ~h, h, Rk, Xk, width_rule, multiples, taus, warm_start, regularizer_options)
         for h, Rk, Xk in zip(folds, fold_cameras, starts, strict=True)
     ]
-    rows = [row for fold in _map(_kernel_fold, args, n_jobs) for row in fold]
-    cv = _summarise(rows, ["width_multiple", "tau"])[
+    rows = [row for fold in run_jobs([(_kernel_fold, a) for a in args], n_jobs) for row in fold]
+    cv = summarise_folds(rows, ["width_multiple", "tau"])[
         ["tau", "width_multiple", "mean_test_error", "std_test_error", "fit_time"]
     ]
     best = int(np.argmin(cv["mean_test_error"].to_numpy()))
     tau, multiple = float(cv["tau"].iloc[best]), float(cv["width_multiple"].iloc[best])
     if R is not None:
-        X0 = _known_camera_start(W2d, R, mask, tnh_options)
+        if X_start is None:
+            X0 = _known_camera_start(W2d, R, mask, tnh_options)
+        else:
+            X0 = np.asarray(X_start, dtype=np.float64)
+            if X0.shape != (mask.shape[0], 3 * mask.shape[1]):
+                raise ValueError(f"X_start must have shape (F, 3P) = {(mask.shape[0], 3 * mask.shape[1])}")
         gamma = multiple * WIDTH_RULES[width_rule](X0)
         begin = time.process_time()
         result = minimize_regularized(
@@ -523,7 +492,7 @@ def select_kernel(
         R0, X0 = tnh.result_.R, tnh.result_.x
         gamma = multiple * WIDTH_RULES[width_rule](X0)
         begin = time.process_time()
-        result = kernel_camera_alternation(
+        result = kernel_with_camera_refinement(
             W2d, mask, R0, X0, gamma=gamma, tau=tau, **dict(camera_options or {}), **regularizer_options
         )
         start = (R0, X0)

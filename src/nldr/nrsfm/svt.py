@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._spectral import shrink_singular_values
+
 __all__ = ["GRAM_SAFETY", "soft_threshold_singular_values", "soft_threshold_singular_values_gram"]
 
 _EPS = float(np.finfo(np.float64).eps)
@@ -51,10 +53,8 @@ def soft_threshold_singular_values(Y: np.ndarray, t: float) -> tuple[np.ndarray,
     nuclear_norm : float
         ||X||_* = sum (s_i - t)_+.
     """
-    U, s, Vt = np.linalg.svd(Y, full_matrices=False)
-    s = np.maximum(s - t, 0.0)
-    k = int(np.count_nonzero(s))
-    return (U[:, :k] * s[:k]) @ Vt[:k], float(s[:k].sum())
+    X, kept = shrink_singular_values(Y, t)
+    return X, float(kept.sum())
 
 
 def soft_threshold_singular_values_gram(Y: np.ndarray, t: float) -> tuple[np.ndarray, float]:

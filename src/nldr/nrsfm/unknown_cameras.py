@@ -1,4 +1,5 @@
-"""NRSfM with unknown cameras (paper Section 4.3, Table 4): the TNH baseline and its tau search.
+"""NRSfM with unknown cameras (paper Section 4.3, Table 4): the TNH baseline, its tau search, and the
+kernel regularizer alternating with the cameras (:func:`kernel_with_camera_refinement`).
 
 The paper initialises the cameras by rigid factorisation, then alternates shapes and cameras, and
 chooses the TNH weight tau per sequence "by golden section search and parabolic interpolation" on the
@@ -32,13 +33,14 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from .._validation import check_count, check_positive
+from ..regularizer import minimize_regularized
 from ..result import SolverResult, status_from
 from .camera_refinement import CameraShapeResult, refine_cameras_and_shapes
 from .fista import fista_tnh
-from .reprojection import check_tracks, masked_residual, visibility_weights
+from .reprojection import OrthographicReprojection, check_tracks, masked_residual, visibility_weights
 from .svt import soft_threshold_singular_values_gram
 
-__all__ = ["TauSearchResult", "tnh_with_camera_refinement", "tune_tau"]
+__all__ = ["TauSearchResult", "tnh_with_camera_refinement", "kernel_with_camera_refinement", "tune_tau"]
 
 
 def tnh_with_camera_refinement(
@@ -199,6 +201,32 @@ class TauSearchResult(SolverResult):
     def tau(self) -> float:
         """The best tau evaluated, same as ``x``."""
         return self.x
+
+
+def kernel_with_camera_refinement(
+    W2d, mask, R_start, X_start, *, gamma, tau, max_outer=20, tol=1e-4, **options
+):
+    """The kernel regularizer alternating with the camera LM (the paper's kernel NRSfM with unknown
+    cameras, Table 4's kernel stage), from the cameras ``R_start`` and shapes ``X_start`` (a TNH's).
+
+    Each shape step runs :func:`~nldr.regularizer.minimize_regularized` (RBF width ``gamma``, weight
+    ``tau``, further ``options`` such as the rho schedule) from the previous shapes, with the data
+    term of the current cameras; :func:`~nldr.nrsfm.refine_cameras_and_shapes` stops when the
+    reprojection error falls by less than ``tol`` (relative) over 3 outer iterations, or after
+    ``max_outer``. Returns its :class:`~nldr.nrsfm.CameraShapeResult` (shapes ``x``, cameras ``R``).
+    """
+    state = {"X": X_start}
+
+    def kernel_shape_step(R):
+        res = minimize_regularized(
+            OrthographicReprojection(W2d, R, mask), state["X"], gamma=gamma, tau=tau, **options
+        )
+        state["X"] = res.x
+        return res.x
+
+    return refine_cameras_and_shapes(
+        W2d, mask, R_start, kernel_shape_step, max_outer=max_outer, tol=tol, window=3
+    )
 
 
 def tune_tau(
