@@ -14,26 +14,8 @@ Algorithm 1 as printed (closed-form C-step, then a Levenberg-Marquardt S-step, r
 block-coordinate descent on two strongly coupled blocks and stops far from the minimum this solver
 reaches (docs/REPRODUCTION.md#table-2-solver).
 
-Maintenance note (the reduced energy and its gradient). Let K = U diag(lambda) U^T. By Theorem 3.1,
-
-    E_rho(S) = min_C E_rho(S, C) = f(S) + sum_i phi(lambda_i(K(S))),
-    phi(lambda) = min_{l >= 0} rho/2 (lambda - l^2)^2 + tau l,
-
-attained at C*(S) = diag(l*) U^T. Envelope theorem: where the minimiser is unique, the derivative of
-a minimum value with respect to a parameter is the partial derivative of the objective at the
-minimiser, so phi'(lambda) = rho (lambda - l*^2) and, by the eigenvalue perturbation formula
-d lambda_i = u_i^T dK u_i,
-
-    dE_rho / dK = U diag(rho (lambda - l*^2)) U^T = rho (K - C*^T C*),
-
-which is the K-gradient of (1) at fixed C = C*(S). The S-gradient then follows from the kernel's
-vector-Jacobian product (:func:`nldr.kernels.rbf_kernel_vjp`); with centring, K = H K_rbf H and the
-gradient with respect to K_rbf is H (dE/dK) H. So evaluating E_rho and its gradient costs one
-symmetric eigendecomposition and O(n^2 d) work, the same as one C-step. phi is continuous but has a
-kink where an eigenvalue crosses the threshold lambda_star and l* jumps from 0 to a positive root
-(both candidates tie there). phi is the minimum of two smooth branches, so the kink is concave (the
-slope drops from rho lambda to rho (lambda - l*^2)): it can never hold a minimiser, and L-BFGS steps
-over it.
+The reduced energy E_rho(S) = min_C E_rho(S, C), its envelope-theorem gradient and the L-BFGS stage
+live in :mod:`nldr._reduced` (maintenance note there).
 
 Maintenance note (the isolation guard: why unobserved coordinates can escape, and the first rho that
 stops it). With the uncentred RBF kernel, trace K = n whatever S is. While every eigenvalue lies at or
@@ -59,13 +41,13 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
-from ._spectral import PARTIAL_MIN_N, check_eigensolver, spectrum
+from ._reduced import KRYLOV_AUTO_FRACTION, RankHint, kernel_factor, lbfgs_stage, rbf, reduced_value_grad
+from ._spectral import check_eigensolver, spectrum
 from ._threads import blas_threads_for
 from ._validation import as_float_matrix, check_count, check_positive
 from .data_terms import DataTerm, check_start
-from .kernels import center_kernel, rbf_kernel_vjp, squared_distances
+from .kernels import center_kernel
 from .result import CONVERGED, MAX_ITER, SolverResult
 
 __all__ = [
@@ -77,6 +59,7 @@ __all__ = [
     "optimal_kernel_factor",
     "isolation_safe_rho0",
     "penalty_method",
+    "KRYLOV_AUTO_FRACTION",
 ]
 
 
@@ -132,69 +115,6 @@ class RegularizerResult(SolverResult):
 # --------------------------------------------------------------------------------------------------
 
 
-def _rbf(S: np.ndarray, gamma: float) -> np.ndarray:
-    return np.exp(-gamma * squared_distances(S))
-
-
-#: "auto" switches to Lanczos ("krylov") once n >= PARTIAL_MIN_N and the previous evaluation kept at
-#: most this fraction of the spectrum. At n = 1000 (one thread) Lanczos took 13 / 45 / 72-80 ms for
-#: 24 / 97 / 141 eigenpairs against 61 / 85 / 101 ms for MRRR; with 0.16 rather than 0.12 the last
-#: stage of a 1000-row Table 2 solve (rank 143) also takes it, 10 % less CPU (bench_scale.py).
-KRYLOV_AUTO_FRACTION = 0.16
-
-
-class _RankHint:
-    """The rank of the previous evaluation, so "auto" can skip a partial decomposition that won't pay."""
-
-    def __init__(self):
-        self.rank: int | None = None
-
-    def solver(self, eigensolver: str, n: int) -> str:
-        """The eigensolver for this evaluation: "auto" becomes "krylov" when the last rank was small."""
-        if eigensolver == "auto" and n >= PARTIAL_MIN_N and self.rank is not None:
-            if self.rank <= KRYLOV_AUTO_FRACTION * n:
-                return "krylov"
-        return eigensolver
-
-
-def _reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver="auto", hint=None):
-    """E_rho(S), its gradient (n, d), and the spectrum (lam, U, l); no validation.
-
-    ``eigensolver="full"`` is the reference: every eigenpair, ``dE/dK = U diag(rho gap) U^T`` (O(n^3)).
-    Otherwise only the eigenpairs above the cubic's threshold are computed (see the maintenance note
-    of :mod:`nldr._spectral`) and ``dE/dK = rho (K - C^T C)`` is formed from the kept ones, O(n^2 r)
-    for rank r; the spectrum returned then holds only those eigenpairs.
-    """
-    K_rbf = _rbf(S, gamma)
-    K = center_kernel(K_rbf) if center else K_rbf
-    if eigensolver == "full":
-        lam, U, l = spectrum(K, tau, rho)
-        gap = lam - l * l
-        value = data_term.value(S) + 0.5 * rho * float(gap @ gap) + tau * float(l.sum())
-        G = (U * (rho * gap)) @ U.T  # dE/dK = rho (K - C*^T C*), see the maintenance note
-    else:
-        if hint is not None:
-            eigensolver = hint.solver(eigensolver, K.shape[0])
-        lam, U, l = spectrum(K, tau, rho, eigensolver, None if hint is None else hint.rank)
-        if hint is not None:
-            hint.rank = lam.size
-        UL = U[:, l > 0] * l[l > 0]  # C*^T, shape (n, r)
-        D = K - UL @ UL.T  # K - C*^T C*
-        d = D.ravel()
-        value = data_term.value(S) + 0.5 * rho * float(d @ d) + tau * float(l.sum())
-        G = np.multiply(D, rho, out=D)
-        if not center:
-            # G is exactly symmetric (K and UL UL^T are: numpy forms A A^T by a symmetric rank-k
-            # update), so rbf_kernel_vjp's (G + G^T) o K is 2 G o K, here formed in place: same bits.
-            M = np.multiply(G, K_rbf, out=G)
-            vjp = (-4.0 * gamma) * (M.sum(axis=1)[:, None] * S - M @ S)
-            return value, data_term.gradient(S) + vjp, (lam, U, l)
-    if center:
-        G = center_kernel(G)  # H G H (G symmetric)
-    grad = data_term.gradient(S) + rbf_kernel_vjp(S, K_rbf, G, gamma)
-    return value, grad, (lam, U, l)
-
-
 def _check_problem(data_term, S, gamma, tau, name_S="S"):
     return check_start(data_term, S, name_S), check_positive(gamma, "gamma"), check_positive(tau, "tau")
 
@@ -240,7 +160,7 @@ def reduced_energy(
     S, gamma, tau = _check_problem(data_term, S, gamma, tau)
     rho = check_positive(rho, "rho")
     eigensolver = check_eigensolver(eigensolver)
-    value, grad, _ = _reduced_value_grad(S, data_term, gamma, tau, rho, bool(center), eigensolver)
+    value, grad, _ = reduced_value_grad(S, data_term, gamma, tau, rho, bool(center), eigensolver)
     return float(value), grad
 
 
@@ -264,18 +184,11 @@ def optimal_kernel_factor(
     """
     S = as_float_matrix(S, "S")
     gamma, tau, rho = check_positive(gamma, "gamma"), check_positive(tau, "tau"), check_positive(rho, "rho")
-    K = _rbf(S, gamma)
+    K = rbf(S, gamma)
     if center:
         K = center_kernel(K)
     _, U, l = spectrum(K, tau, rho, check_eigensolver(eigensolver))
-    return _kernel_factor(l, U)
-
-
-def _kernel_factor(l: np.ndarray, U: np.ndarray) -> np.ndarray:
-    """C = diag(l) U^T zero-padded to (n, n) (U may hold only the leading eigenvectors)."""
-    C = np.zeros((U.shape[0], U.shape[0]))
-    C[: l.size] = l[:, None] * U.T
-    return C
+    return kernel_factor(l, U)
 
 
 def regularized_energy(
@@ -301,7 +214,7 @@ def regularized_energy(
     C = as_float_matrix(C, "C")
     if C.shape[1] != S.shape[0]:
         raise ValueError(f"C must have {S.shape[0]} columns (one per sample); got shape {C.shape}")
-    K = _rbf(S, gamma)
+    K = rbf(S, gamma)
     if center:
         K = center_kernel(K)
     nuclear = float(np.linalg.svd(C, compute_uv=False).sum())
@@ -364,32 +277,6 @@ def isolation_safe_rho0(tau: float) -> float:
     return check_positive(tau, "tau") * np.sqrt(27.0 / 8.0)
 
 
-def _stage_reduced(S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint):
-    shape = S.shape
-
-    def fun(x):
-        value, grad, _ = _reduced_value_grad(
-            x.reshape(shape), data_term, gamma, tau, rho, center, eigensolver, hint
-        )
-        return value, grad.ravel()
-
-    def record(intermediate_result):
-        energies.append(float(intermediate_result.fun))
-
-    res = minimize(
-        fun,
-        S.ravel(),
-        jac=True,
-        method="L-BFGS-B",
-        callback=record,
-        options={"maxiter": max_inner, "maxfun": 20 * max_inner, "ftol": tol, "gtol": gtol, "maxcor": 20},
-    )
-    # status 0: tolerance met; 1: iteration or evaluation limit; 2: line search could not make
-    # progress, which at these tolerances means rounding noise at the minimum.
-    converged = res.status != 1
-    return res.x.reshape(shape), int(res.nit), converged, str(res.message)
-
-
 def penalty_method(S, rhos, stage, stage_end, *, start: float) -> RegularizerResult:
     """The penalty method's outer loop (Algorithm 1), shared by every solver of the regularizer.
 
@@ -438,17 +325,17 @@ def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, e
 
     ``tols`` is ``(tol of every stage but the last, tol of the last)``.
     """
-    hint = _RankHint()
+    hint = RankHint()
 
     def stage(S, rho, energies):
         tol = tols[1] if rho == rhos[-1] else tols[0]
-        return _stage_reduced(
+        return lbfgs_stage(
             S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint
         )
 
     def stage_end(S, rho):
-        value, _, (lam, U, l) = _reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver, hint)
-        return value, _kernel_factor(l, U), int(np.count_nonzero(l))
+        value, _, (lam, U, l) = reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver, hint)
+        return value, kernel_factor(l, U), int(np.count_nonzero(l))
 
     return penalty_method(S, rhos, stage, stage_end, start=start)
 
@@ -542,6 +429,15 @@ def minimize_regularized(
     eigensolver = check_eigensolver(eigensolver)
     with blas_threads_for(S.shape[0]):  # one BLAS thread on small problems (nldr._threads)
         return _run_stages(
-            S.copy(), data_term, gamma, tau, bool(center), rhos, max_inner, (stage_tol, tol), gtol,
-            eigensolver, start,
+            S.copy(),
+            data_term,
+            gamma,
+            tau,
+            bool(center),
+            rhos,
+            max_inner,
+            (stage_tol, tol),
+            gtol,
+            eigensolver,
+            start,
         )
