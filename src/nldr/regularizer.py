@@ -48,7 +48,7 @@ from ._threads import blas_threads_for
 from ._validation import as_float_matrix, check_count, check_positive
 from .data_terms import DataTerm, check_start
 from .kernels import center_kernel
-from .result import CONVERGED, MAX_ITER, SolverResult
+from .result import CONVERGED, INACCURATE, MAX_ITER, SolverResult
 
 __all__ = [
     "RegularizerResult",
@@ -60,6 +60,7 @@ __all__ = [
     "isolation_safe_rho0",
     "penalty_method",
     "KRYLOV_AUTO_FRACTION",
+    "StageInfo",
 ]
 
 
@@ -277,20 +278,74 @@ def isolation_safe_rho0(tau: float) -> float:
     return check_positive(tau, "tau") * np.sqrt(27.0 / 8.0)
 
 
-def penalty_method(S, rhos, stage, stage_end, *, start: float) -> RegularizerResult:
+@dataclass(frozen=True)
+class StageInfo:
+    """What ``minimize_regularized(callback=...)`` receives after every penalty stage.
+
+    Attributes
+    ----------
+    stage : int
+        Index of the stage (0 for rho0).
+    n_stages : int
+        Number of stages in the schedule.
+    rho : float
+        The stage's penalty weight.
+    nit : int
+        Inner iterations of this stage.
+    energy : float
+        Energy (1) at the end of the stage, at its rho.
+    rank : int
+        Rank of C at the end of the stage.
+    converged : bool
+        Whether the stage met its tolerance.
+    seconds : float
+        Wall-clock seconds the stage took.
+    x : array, shape (n_samples, n_features)
+        A copy of the estimate S at the end of the stage.
+    """
+
+    stage: int
+    n_stages: int
+    rho: float
+    nit: int
+    energy: float
+    rank: int
+    converged: bool
+    seconds: float
+    x: np.ndarray
+
+    def __str__(self) -> str:
+        return (
+            f"stage {self.stage + 1}/{self.n_stages}: rho {self.rho:g}, {self.nit} iterations, "
+            f"energy {self.energy:.8g}, rank {self.rank}, {self.seconds:.2f} s"
+            + ("" if self.converged else " (iteration limit)")
+        )
+
+
+def _check_callback(callback):
+    if callback is not None and not callable(callback):
+        raise ValueError(f"callback must be callable or None; got {type(callback).__name__}")
+    return callback
+
+
+def penalty_method(
+    S, rhos, stage, stage_end, *, start: float, callback=None, verbose=False
+) -> RegularizerResult:
     """The penalty method's outer loop (Algorithm 1), shared by every solver of the regularizer.
 
     For each rho of ``rhos``, ``stage(S, rho, energies) -> (S, nit, ok, why)`` minimises the energy at
     that rho from the previous stage's S, appending one energy per inner iteration to ``energies``;
     ``stage_end(S, rho) -> (value, C, rank)`` then gives the stage's final energy, kernel factor and
-    rank. ``start`` is ``time.perf_counter()`` at the solver's entry. No validation.
+    rank. ``start`` is ``time.perf_counter()`` at the solver's entry. After each stage a
+    :class:`StageInfo` is printed if ``verbose`` and passed to ``callback``; a callback returning True
+    ends the loop (status INACCURATE: the schedule was not completed). No validation.
     """
     energies: list[float] = []
     stage_index: list[int] = []
     stage_energy, ranks, failures = [], [], []
-    nit = 0
+    nit, stopped = 0, None
     for k, rho in enumerate(rhos):
-        before = len(energies)
+        before, t0 = len(energies), time.perf_counter()
         S, stage_nit, ok, why = stage(S, rho, energies)
         stage_index.extend([k] * (len(energies) - before))
         nit += stage_nit
@@ -299,14 +354,26 @@ def penalty_method(S, rhos, stage, stage_end, *, start: float) -> RegularizerRes
         ranks.append(rank)
         if not ok:
             failures.append(f"stage {k} (rho={rho:g}): {why}")
+        if verbose or callback is not None:
+            info = StageInfo(
+                stage=k, n_stages=len(rhos), rho=float(rho), nit=int(stage_nit), energy=float(value),
+                rank=int(rank), converged=bool(ok), seconds=time.perf_counter() - t0, x=S.copy(),
+            )  # fmt: skip
+            if verbose:
+                print(f"minimize_regularized {info}", flush=True)
+            if callback is not None and callback(info) is True and k + 1 < len(rhos):
+                stopped, rhos = k, rhos[: k + 1]
+                break
     if failures:
         message = "iteration limit reached in " + "; ".join(failures)
     else:
         message = f"all {len(rhos)} penalty stages converged (rho {rhos[0]:g} to {rhos[-1]:g})"
+    if stopped is not None:
+        message = f"stopped by the callback after stage {stopped} (rho={rhos[-1]:g}); " + message
     return RegularizerResult(
         x=S,
         fun=float(stage_energy[-1]),
-        status=MAX_ITER if failures else CONVERGED,
+        status=INACCURATE if stopped is not None else MAX_ITER if failures else CONVERGED,
         message=message,
         nit=nit,
         wall_time=time.perf_counter() - start,
@@ -320,7 +387,7 @@ def penalty_method(S, rhos, stage, stage_end, *, start: float) -> RegularizerRes
     )
 
 
-def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, eigensolver, start):
+def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, eigensolver, start, report):
     """One L-BFGS solve per penalty weight, warm-started; the closed-form C after each. No validation.
 
     ``tols`` is ``(tol of every stage but the last, tol of the last)``.
@@ -337,7 +404,7 @@ def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, e
         value, _, (lam, U, l) = reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver, hint)
         return value, kernel_factor(l, U), int(np.count_nonzero(l))
 
-    return penalty_method(S, rhos, stage, stage_end, start=start)
+    return penalty_method(S, rhos, stage, stage_end, start=start, **report)
 
 
 def minimize_regularized(
@@ -356,6 +423,8 @@ def minimize_regularized(
     stage_tol: float | None = None,
     eigensolver: str = "auto",
     isolation_guard: bool = True,
+    verbose: bool = False,
+    callback=None,
 ) -> RegularizerResult:
     """Minimise ``f(S) + rho/2 ||K(S) - C^T C||_F^2 + tau ||C||_*`` by the penalty method.
 
@@ -404,6 +473,14 @@ def minimize_regularized(
         the first stage cannot push unobserved coordinates away from the data (module maintenance
         note). It changes nothing when rho0 is already >= tau sqrt(27/8), as in every table of the
         paper; False runs the given schedule as it is (to study the escape).
+    verbose : bool, default=False
+        Print one line per penalty stage: rho, iterations, energy, rank and seconds.
+    callback : callable, optional
+        Called after every stage with a :class:`StageInfo` (stage index, rho, iterations, energy,
+        rank, converged, seconds, a copy of S). If it returns True, the solver stops there and
+        returns that stage's estimate with status :data:`~nldr.result.INACCURATE` (the schedule was
+        not completed) and the stopping stage named in ``message``; after the last stage it
+        changes nothing.
 
     Returns
     -------
@@ -427,17 +504,9 @@ def minimize_regularized(
     tol, gtol = check_positive(tol, "tol"), check_positive(gtol, "gtol")
     stage_tol = tol if stage_tol is None else check_positive(stage_tol, "stage_tol")
     eigensolver = check_eigensolver(eigensolver)
+    callback = _check_callback(callback)
     with blas_threads_for(S.shape[0]):  # one BLAS thread on small problems (nldr._threads)
         return _run_stages(
-            S.copy(),
-            data_term,
-            gamma,
-            tau,
-            bool(center),
-            rhos,
-            max_inner,
-            (stage_tol, tol),
-            gtol,
-            eigensolver,
-            start,
-        )
+            S.copy(), data_term, gamma, tau, bool(center), rhos, max_inner, (stage_tol, tol), gtol,
+            eigensolver, start, {"callback": callback, "verbose": bool(verbose)},
+        )  # fmt: skip
