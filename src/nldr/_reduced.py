@@ -31,7 +31,15 @@ from scipy.optimize import minimize
 from ._spectral import PARTIAL_MIN_N, spectrum
 from .kernels import center_kernel, rbf_kernel_vjp, squared_distances
 
-__all__ = ["KRYLOV_AUTO_FRACTION", "RankHint", "rbf", "reduced_value_grad", "kernel_factor", "lbfgs_stage"]
+__all__ = [
+    "KRYLOV_AUTO_FRACTION",
+    "RankHint",
+    "rbf",
+    "reduced_value_grad",
+    "kernel_factor",
+    "lbfgs_stage",
+    "lbfgs_minimize",
+]
 
 
 def rbf(S: np.ndarray, gamma: float) -> np.ndarray:
@@ -105,14 +113,25 @@ def kernel_factor(l: np.ndarray, U: np.ndarray) -> np.ndarray:
 
 
 def lbfgs_stage(S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint):
+    """One penalty stage: L-BFGS on the exact reduced energy from S (see :func:`lbfgs_minimize`)."""
+
+    def value_grad(S):
+        value, grad, _ = reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver, hint)
+        return value, grad
+
+    return lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies)
+
+
+def lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies):
+    """Minimise ``value_grad(S) -> (value, gradient of S's shape)`` by L-BFGS from S.
+
+    Appends the energy after every iteration to ``energies``; returns ``(S, nit, converged, message)``.
+    """
     shape = S.shape
 
     def fun(x):
-        value, grad, _ = reduced_value_grad(
-            x.reshape(shape), data_term, gamma, tau, rho, center, eigensolver, hint
-        )
+        value, grad = value_grad(x.reshape(shape))
         return value, grad.ravel()
-
     def record(intermediate_result):
         energies.append(float(intermediate_result.fun))
 

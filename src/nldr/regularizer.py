@@ -42,7 +42,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._reduced import KRYLOV_AUTO_FRACTION, RankHint, kernel_factor, lbfgs_stage, rbf, reduced_value_grad
+from ._nystroem import landmark_indices, landmark_map, nystroem_factor, nystroem_value_grad
+from ._reduced import (
+    KRYLOV_AUTO_FRACTION,
+    RankHint,
+    kernel_factor,
+    lbfgs_minimize,
+    lbfgs_stage,
+    rbf,
+    reduced_value_grad,
+)
 from ._spectral import check_eigensolver, spectrum
 from ._threads import blas_threads_for
 from ._validation import as_float_matrix, check_count, check_positive
@@ -322,12 +331,6 @@ class StageInfo:
         )
 
 
-def _check_callback(callback):
-    if callback is not None and not callable(callback):
-        raise ValueError(f"callback must be callable or None; got {type(callback).__name__}")
-    return callback
-
-
 def penalty_method(
     S, rhos, stage, stage_end, *, start: float, callback=None, verbose=False
 ) -> RegularizerResult:
@@ -390,17 +393,35 @@ def penalty_method(
 def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, eigensolver, start, report):
     """One L-BFGS solve per penalty weight, warm-started; the closed-form C after each. No validation.
 
-    ``tols`` is ``(tol of every stage but the last, tol of the last)``.
+    ``tols`` is ``(tol of every stage but the last, tol of the last)``; ``report`` holds the
+    ``callback``, ``verbose`` and ``landmarks`` (None or ``(m, seed)``) options.
     """
     hint = RankHint()
+    landmarks = report.pop("landmarks")
+    if landmarks is not None:
+        idx = landmark_indices(S.shape[0], *landmarks)
+        frozen = {}
 
     def stage(S, rho, energies):
         tol = tols[1] if rho == rhos[-1] else tols[0]
-        return lbfgs_stage(
-            S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint
-        )
+        if landmarks is None:
+            return lbfgs_stage(
+                S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint
+            )
+        frozen["Z"] = Z = S[idx].copy()  # the landmarks stay where they are during the stage
+        frozen["P"] = P = landmark_map(Z, gamma)
+
+        def value_grad(S):
+            return nystroem_value_grad(S, Z, P, data_term, gamma, tau, rho, center)
+
+        return lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies)
 
     def stage_end(S, rho):
+        if landmarks is not None:
+            Z, P = frozen["Z"], frozen["P"]
+            value, _ = nystroem_value_grad(S, Z, P, data_term, gamma, tau, rho, center)
+            l, U = nystroem_factor(S, Z, P, gamma, tau, rho, center)
+            return value, kernel_factor(l, U), int(l.size)
         value, _, (lam, U, l) = reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver, hint)
         return value, kernel_factor(l, U), int(np.count_nonzero(l))
 
@@ -425,6 +446,8 @@ def minimize_regularized(
     isolation_guard: bool = True,
     verbose: bool = False,
     callback=None,
+    landmarks: int | None = None,
+    landmark_seed: int = 0,
 ) -> RegularizerResult:
     """Minimise ``f(S) + rho/2 ||K(S) - C^T C||_F^2 + tau ||C||_*`` by the penalty method.
 
@@ -481,6 +504,14 @@ def minimize_regularized(
         returns that stage's estimate with status :data:`~nldr.result.INACCURATE` (the schedule was
         not completed) and the stopping stage named in ``message``; after the last stage it
         changes nothing.
+    landmarks : int, optional
+        Opt-in approximation: replace the kernel by its Nystroem approximation on this many landmark
+        samples (a random subset drawn from ``landmark_seed``, re-read from S at the start of every
+        stage; module :mod:`nldr._nystroem`). One evaluation then costs O(n m^2) instead of O(n^2 r)
+        plus an n x n eigensolver, but the minimiser is not the exact one (its SSE against the exact
+        solve: docs/PERFORMANCE.md). None (default): the exact kernel. ``eigensolver`` is then unused.
+    landmark_seed : int, default=0
+        Seed of the landmark draw.
 
     Returns
     -------
@@ -504,9 +535,12 @@ def minimize_regularized(
     tol, gtol = check_positive(tol, "tol"), check_positive(gtol, "gtol")
     stage_tol = tol if stage_tol is None else check_positive(stage_tol, "stage_tol")
     eigensolver = check_eigensolver(eigensolver)
-    callback = _check_callback(callback)
+    if callback is not None and not callable(callback):
+        raise ValueError(f"callback must be callable or None; got {type(callback).__name__}")
+    if landmarks is not None:
+        landmarks = (min(check_count(landmarks, "landmarks"), S.shape[0]), int(landmark_seed))
     with blas_threads_for(S.shape[0]):  # one BLAS thread on small problems (nldr._threads)
         return _run_stages(
             S.copy(), data_term, gamma, tau, bool(center), rhos, max_inner, (stage_tol, tol), gtol,
-            eigensolver, start, {"callback": callback, "verbose": bool(verbose)},
+            eigensolver, start, {"callback": callback, "verbose": bool(verbose), "landmarks": landmarks},
         )  # fmt: skip
