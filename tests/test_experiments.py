@@ -81,6 +81,9 @@ def test_jobs_follow_the_config(config):
     assert counts["table2"] == len(t2["p"]) * t2["n_masks"]
     assert counts["table3"] == len(t3["sequences"]) * (1 + t3["n_seeds"])
     assert counts["table2_full"] == len(t2["p"]) * config["table2_full"]["n_masks"]
+    assert counts["table2_all"] == len(t2["p"]) * config["table2_all"]["n_masks"]
+    # table2_all: Ours takes the block's extra solver options on top of table2's
+    assert EXPERIMENTS["table2_all"].settings(config)["ours"] == config["table2_all"]["ours"]
     # an inheriting experiment takes its parent's keys unless it sets them
     settings = EXPERIMENTS["table3_full"].settings(config)
     assert settings["step"] == config["table3_full"]["step"] and settings["tau"] == t3["tau"]

@@ -23,6 +23,7 @@ _REGISTRY = {
     "table3": ("table3", "Table3"),
     "table4": ("table4", "Table4"),
     "table2_full": ("table2", "Table2Full"),
+    "table2_all": ("table2", "Table2All"),
     "table3_full": ("table3", "Table3Full"),
     "selection": ("selection", "Selection"),
     "selection_nrsfm": ("selection_nrsfm", "SelectionNRSfM"),
