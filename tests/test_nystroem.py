@@ -68,5 +68,8 @@ def test_landmark_solve_is_seeded_and_validated(problem):
     np.testing.assert_array_equal(a.x, b.x)
     assert not np.array_equal(a.x, c.x)
     assert a.C.shape == (40, 40) and np.linalg.matrix_rank(a.C) == a.rank_history[-1] <= 15
+    exact = minimize_regularized(term, S, gamma=GAMMA, tau=TAU, rho_max=100.0)
+    all_samples = minimize_regularized(term, S, gamma=GAMMA, tau=TAU, rho_max=100.0, landmarks=40)
+    np.testing.assert_array_equal(all_samples.x, exact.x)  # landmarks >= n: the exact solver
     with pytest.raises(ValueError, match="landmarks"):
         minimize_regularized(term, S, gamma=GAMMA, tau=TAU, landmarks=0)

@@ -509,7 +509,7 @@ def minimize_regularized(
         samples (a random subset drawn from ``landmark_seed``, re-read from S at the start of every
         stage; module :mod:`nldr._nystroem`). One evaluation then costs O(n m^2) instead of O(n^2 r)
         plus an n x n eigensolver, but the minimiser is not the exact one (its SSE against the exact
-        solve: docs/PERFORMANCE.md). None (default): the exact kernel. ``eigensolver`` is then unused.
+        solve: docs/PERFORMANCE.md). None (default), or ``landmarks >= n_samples``: the exact kernel.
     landmark_seed : int, default=0
         Seed of the landmark draw.
 
@@ -537,8 +537,10 @@ def minimize_regularized(
     eigensolver = check_eigensolver(eigensolver)
     if callback is not None and not callable(callback):
         raise ValueError(f"callback must be callable or None; got {type(callback).__name__}")
-    if landmarks is not None:
-        landmarks = (min(check_count(landmarks, "landmarks"), S.shape[0]), int(landmark_seed))
+    if landmarks is not None and check_count(landmarks, "landmarks") < S.shape[0]:
+        landmarks = (landmarks, int(landmark_seed))
+    else:
+        landmarks = None  # every sample a landmark: the exact kernel costs less
     with blas_threads_for(S.shape[0]):  # one BLAS thread on small problems (nldr._threads)
         return _run_stages(
             S.copy(), data_term, gamma, tau, bool(center), rhos, max_inner, (stage_tol, tol), gtol,
