@@ -411,7 +411,7 @@ class Table2All(Table2Full):
         ours = s.get("ours", {})
         how = (
             f" Ours on the Nystroem approximation of the kernel ({ours['landmarks']} landmark samples, "
-            "minimize_regularized(landmarks=...); the exact solve costs too much at this size)."
+            "minimize_regularized(landmarks=...), opt-in; not the exact solve, see docs/PERFORMANCE.md)."
             if "landmarks" in ours
             else ""
         )
