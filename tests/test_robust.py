@@ -174,7 +174,7 @@ def test_robust_scale_and_corruption():
     # 30 % gross errors of +-1e6: the median |r| is then the 0.5 / 0.7 quantile of |N(0, 1)|, 1.067,
     # so the scale is 1.4826 x 1.067 = 1.58, not ~5e5 like the standard deviation
     r = g.copy()
-    r[: 6000] = np.where(np.arange(6000) % 2, 1e6, -1e6)
+    r[:6000] = np.where(np.arange(6000) % 2, 1e6, -1e6)
     assert robust_scale(r) == pytest.approx(1.4826 * 1.0676, abs=0.05)
     with pytest.raises(ValueError, match="zero median absolute deviation"):
         robust_scale(np.zeros(5))
@@ -263,3 +263,74 @@ def test_rpca_rejects_bad_input():
     empty[:, 2] = False
     with pytest.raises(ValueError, match="no observed entry"):
         rpca_pcp(W, empty)
+
+
+# ---- selection with gross errors ----------------------------------------------------------------
+
+
+def test_absolute_fold_score_and_unknown_score():
+    from nldr.model_selection.folds import check_score, fold_score
+
+    W = np.zeros((2, 2))
+    X_hat = np.array([[1.0, -3.0], [0.5, 0.0]])
+    hidden = np.array([[True, True], [False, True]])
+    assert fold_score(X_hat, W, hidden, "absolute") == pytest.approx(4.0 / 3.0)
+    assert fold_score(X_hat, W, hidden) == pytest.approx(10.0 / 3.0)
+    with pytest.raises(ValueError, match="score must be one of"):
+        check_score("huber")
+
+
+def test_select_huber_regularizer_applies_its_delta_rule():
+    from nldr.baselines import mean_impute
+    from nldr.model_selection import select_huber_regularizer
+
+    rng = np.random.default_rng(2)
+    t = np.sort(rng.uniform(0, 2 * np.pi, 30))
+    X = np.column_stack([np.cos(t), np.sin(t), np.cos(t + 1), np.sin(t + 1), 0.3 * t])
+    mask = rng.random(X.shape) > 0.1
+    mask[0] = True  # every column observed
+    W, _ = gross_corruption(X, mask, [0.1], 0)[0.1]
+    W = np.where(mask, W, np.nan)
+    gamma = 0.25 * median_gamma(W, mask)
+    sel = select_huber_regularizer(W, mask, taus=[0.3, 3.0], gammas=[gamma], n_folds=2, rho_growth=100.0)
+    assert set(sel.cv_results_["tau"]) == {0.3, 3.0} and sel.tau_ in (0.3, 3.0) and sel.gamma_ == gamma
+    best = sel.cv_results_["mean_test_error"].idxmin()
+    assert sel.tau_ == sel.cv_results_["tau"][best]
+    # the refit's delta is the rule applied to the least-squares fit on every observed entry
+    ls = minimize_regularized(
+        MaskedLeastSquares(W, mask), mean_impute(W, mask), gamma=gamma, tau=sel.tau_, rho_growth=100.0
+    )
+    assert sel.delta_ == pytest.approx(1.345 * robust_scale((W - ls.x)[mask]), rel=1e-9)
+    with pytest.raises(ValueError, match="delta_factor"):
+        select_huber_regularizer(W, mask, taus=[1.0], delta_factor=0.0)
+    with pytest.raises(ValueError, match="score"):
+        select_huber_regularizer(W, mask, taus=[1.0], score="median")
+
+
+def test_robust_experiment_jobs_and_summary():
+    import pandas as pd
+
+    from nldr.experiments import get
+
+    experiment = get("robust")
+    config = {
+        "robust": {
+            "p": [0.0, 0.25],
+            "n_seeds": 3,
+            "seed": 10,
+            "corrupt": [0.05, 0.1],
+            "outlier_sd": {"low": 3.0, "high": 6.0},
+            "grid": {"log10_tau": {"min": -1, "max": 1}},
+        }
+    }
+    jobs = experiment.check(config)
+    assert [j.id for j in jobs][:2] == ["p0_seed10", "p0_seed11"] and len(jobs) == 6
+    runs = pd.DataFrame(
+        [{"p": 0.25, "corrupt": 0.1, "seed": s, "method": "RPCA", "sse": v} for s, v in [(1, 2.0), (2, 4.0)]]
+    )
+    table = experiment.summarise(runs)
+    row = table[(table["setting"] == "corrupt=0.1,p=0.25") & (table["metric"] == "sse")]
+    assert float(row["value"].iloc[0]) == 3.0
+    bad = {"robust": {**config["robust"], "outlier_sd": {"low": 6.0, "high": 3.0}}}
+    with pytest.raises(ValueError, match="robust.outlier_sd"):
+        experiment.check(bad)
