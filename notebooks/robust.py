@@ -92,7 +92,9 @@ axes[0][0].legend(fontsize=8)
 fig.tight_layout()
 
 # %% [markdown]
-# ## What CV chose, and what it cost (CPU-bound seconds per fit, selection included)
+# ## What CV chose, and what it cost
+# Wall seconds per method and corruption share, selection included (the jobs shared two cores with
+# other work; the CPU time of each job is in `results/benchmarks/robust/`).
 
 # %%
 all_runs.groupby(["p", "corrupt", "method"]).agg(seconds=("seconds", "mean")).unstack("method").round(2)
