@@ -1,4 +1,5 @@
-"""Data terms f(W, S) for the regularizer: the interface, and masked least squares (completion).
+"""Data terms f(W, S) for the regularizer: the interface, masked least squares (completion), and the
+Huber loss on the residuals of any of them (robust completion, robust NRSfM).
 
 Interface (one mechanism for every experiment). A data term is an object with
 
@@ -19,9 +20,9 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 import scipy.sparse as sp
 
-from ._validation import as_float_matrix, check_magnitude
+from ._validation import as_float_matrix, check_magnitude, check_positive
 
-__all__ = ["DataTerm", "MaskedLeastSquares", "check_start"]
+__all__ = ["DataTerm", "MaskedLeastSquares", "Huber", "MaskedHuber", "huber_loss", "check_start"]
 
 
 @runtime_checkable
@@ -101,3 +102,101 @@ class MaskedLeastSquares:
 
     def gradient(self, S: np.ndarray) -> np.ndarray:
         return -2.0 * np.where(self.mask, self.W - S, 0.0)
+
+
+# --------------------------------------------------------------------------------------------------
+# Robust data terms: the Huber loss on the residuals of any least-squares data term
+# --------------------------------------------------------------------------------------------------
+
+
+def huber_loss(r, delta: float) -> np.ndarray:
+    """h_delta(r) = r^2 for |r| <= delta, 2 delta |r| - delta^2 beyond, elementwise (units of r squared).
+
+    Twice the textbook Huber function, so that it *equals* the squared residual of the least-squares
+    terms above (which carry no 1/2) wherever |r| <= delta. It is convex, continuously differentiable
+    (h' = 2 clip(r, -delta, delta)), never above r^2, and grows linearly beyond delta: a residual of a
+    gross outlier pulls with force at most 2 delta instead of 2 |r|. As delta -> infinity it is the
+    squared loss; h_delta / (2 delta) -> |r| as delta -> 0 (within delta / 2 everywhere).
+    """
+    delta = check_positive(delta, "delta")
+    a = np.abs(np.asarray(r, dtype=np.float64))
+    return np.where(a <= delta, a * a, 2.0 * delta * a - delta * delta)
+
+
+class Huber:
+    """f(S) = sum_i h_delta(r_i(S)): the Huber loss (:func:`huber_loss`) on another data term's residuals.
+
+    Wraps any :class:`DataTerm` with residuals r(S) and Jacobian J (e.g. :class:`MaskedLeastSquares`,
+    or :class:`nldr.nrsfm.OrthographicReprojection` for robust NRSfM) and is itself a DataTerm, so
+    :func:`nldr.regularizer.minimize_regularized` takes it unchanged. Residuals within ``delta`` count
+    as in least squares, larger ones linearly; for every |r_i| <= delta, value and gradient equal the
+    wrapped term's.
+
+    Least-squares form (for Levenberg-Marquardt and the protocol): the residuals are
+    ``rt_i = sign(r_i) sqrt(h_delta(r_i))``, so ``value = rt @ rt``; ``rt`` is continuously
+    differentiable in r with drt/dr = 1 for |r| <= delta and ``delta / |rt|`` beyond, and the Jacobian
+    is ``diag(drt/dr) J``. The gradient is ``J^T h'(r) = 2 J^T clip(r, -delta, delta)``.
+
+    Parameters
+    ----------
+    term : DataTerm
+        The least-squares data term whose residuals are made robust; kept as ``self.term`` (its own
+        methods, e.g. ``set_cameras`` of the NRSfM term, stay reachable there).
+    delta : float > 0
+        Threshold between quadratic and linear, in the units of the residuals (e.g. about 1.345 times
+        a robust estimate of the residuals' standard deviation, Huber's 95 % efficiency rule).
+    """
+
+    def __init__(self, term, delta: float):
+        if not isinstance(term, DataTerm):
+            raise ValueError(
+                "term must implement the nldr.data_terms.DataTerm protocol "
+                f"(shape, residuals, jacobian, value, gradient); got {type(term).__name__}"
+            )
+        self.term = term
+        self.delta = check_positive(delta, "delta")
+        self.shape = tuple(term.shape)
+
+    def residuals(self, S: np.ndarray) -> np.ndarray:
+        r = self.term.residuals(S)
+        return np.sign(r) * np.sqrt(huber_loss(r, self.delta))
+
+    def jacobian(self, S: np.ndarray) -> sp.csr_matrix:
+        r = self.term.residuals(S)
+        a = np.abs(r)
+        scale = np.ones_like(r)
+        outside = a > self.delta
+        scale[outside] = self.delta / np.sqrt(2.0 * self.delta * a[outside] - self.delta**2)
+        return sp.csr_matrix(sp.diags(scale) @ self.term.jacobian(S))
+
+    def value(self, S: np.ndarray) -> float:
+        return float(np.sum(huber_loss(self.term.residuals(S), self.delta)))
+
+    def gradient(self, S: np.ndarray) -> np.ndarray:
+        psi = 2.0 * np.clip(self.term.residuals(S), -self.delta, self.delta)
+        return np.asarray(self.term.jacobian(S).T @ psi).reshape(self.shape)
+
+
+class MaskedHuber(Huber):
+    """f(S) = sum over observed (i, j) of h_delta(W_ij - S_ij): matrix completion robust to outliers.
+
+    :class:`Huber` around :class:`MaskedLeastSquares` (same ``W, mask`` checks), with the gradient
+    ``-2 mask o clip(W - S, -delta, delta)`` formed directly. Equal to ``MaskedLeastSquares(W, mask)``
+    when every observed residual is within ``delta``.
+
+    Parameters
+    ----------
+    W : array, shape (n, d)
+        Observed matrix; entries where ``mask`` is False are ignored (they may be NaN).
+    mask : bool array, shape (n, d)
+        True where W is observed.
+    delta : float > 0
+        Huber threshold, in the units of W.
+    """
+
+    def __init__(self, W, mask, delta: float):
+        super().__init__(MaskedLeastSquares(W, mask), delta)
+        self.W, self.mask = self.term.W, self.term.mask
+
+    def gradient(self, S: np.ndarray) -> np.ndarray:
+        return -2.0 * np.where(self.mask, np.clip(self.W - S, -self.delta, self.delta), 0.0)

@@ -27,6 +27,7 @@ _REGISTRY = {
     "table3_full": ("table3", "Table3Full"),
     "selection": ("selection", "Selection"),
     "selection_nrsfm": ("selection_nrsfm", "SelectionNRSfM"),
+    "robust": ("robust", "Robust"),
 }
 _INSTANCES: dict[str, Experiment] = {}
 

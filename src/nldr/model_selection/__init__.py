@@ -9,6 +9,8 @@ as one; nothing here ever sees ground truth.
 
 - :func:`select_regularizer` chooses (tau, gamma) of :func:`nldr.regularizer.minimize_regularized`
   with the masked least-squares data term (completion; denoising is the all-observed mask).
+- :func:`select_huber_regularizer` chooses tau and gamma of the regularizer with the Huber data term
+  (robust completion), its threshold by a robust-scale rule (:mod:`nldr.model_selection.robust`).
 - :func:`select_imputer` applies the same folds to any imputation method with a knob (PPCA's
   dimension, PKPCA's and RKPCA's width and components): :func:`baseline_grid` gives default grids.
 
@@ -47,6 +49,7 @@ guard (:func:`nldr.regularizer.isolation_safe_rho0`), so large tau cannot push h
 from .folds import DEFAULT_TAUS, GAMMA_MULTIPLES, holdout_folds, median_gamma
 from .imputers import ImputerSelection, baseline_grid, select_imputer
 from .regularizer import RegularizerSelection, select_regularizer
+from .robust import HuberSelection, robust_scale, select_huber_regularizer
 
 __all__ = [
     "DEFAULT_TAUS",
@@ -58,4 +61,7 @@ __all__ = [
     "ImputerSelection",
     "select_imputer",
     "baseline_grid",
+    "HuberSelection",
+    "select_huber_regularizer",
+    "robust_scale",
 ]

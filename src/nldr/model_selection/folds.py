@@ -15,6 +15,8 @@ __all__ = [
     "median_gamma",
     "holdout_folds",
     "fold_score",
+    "SCORES",
+    "check_score",
 ]
 
 #: Default tau grid: log-spaced over four decades around the paper's 0.1 (Table 2) and 10 (denoising).
@@ -95,6 +97,21 @@ def holdout_folds(
     return folds
 
 
-def fold_score(X_hat: np.ndarray, W: np.ndarray, hidden: np.ndarray) -> float:
+#: Fold scores: mean squared error per hidden entry, or mean absolute error (robust to gross outliers
+#: among the hidden entries: an outlier adds |o - x_hat|, whose differences between two estimates are
+#: bounded by their difference at that entry, instead of a square dominated by the outlier).
+SCORES = ("squared", "absolute")
+
+
+def check_score(score: str) -> str:
+    """``score`` if it is one of :data:`SCORES`; a ValueError naming it otherwise."""
+    if score not in SCORES:
+        raise ValueError(f"score must be one of {', '.join(map(repr, SCORES))}; got {score!r}")
+    return score
+
+
+def fold_score(X_hat: np.ndarray, W: np.ndarray, hidden: np.ndarray, score: str = "squared") -> float:
     diff = (X_hat - W)[hidden]
+    if score == "absolute":
+        return float(np.abs(diff).sum()) / diff.size
     return float(diff @ diff) / diff.size

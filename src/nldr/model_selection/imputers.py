@@ -16,7 +16,7 @@ from .._cv import run_jobs, summarise_folds
 from .._validation import check_count
 from ..baselines import peers, pkpca_impute, ppca_impute, rkpca_impute
 from ..baselines._masked import check_masked_matrix, mean_fill
-from .folds import GAMMA_MULTIPLES, fold_score, holdout_folds, median_gamma
+from .folds import GAMMA_MULTIPLES, check_score, fold_score, holdout_folds, median_gamma
 
 __all__ = ["ImputerSelection", "select_imputer", "baseline_grid"]
 
@@ -50,7 +50,7 @@ def _completed(output) -> np.ndarray:
     return np.asarray(getattr(output, "x", output), dtype=np.float64)
 
 
-def _imputer_fold(impute, W, train, hidden, candidates):
+def _imputer_fold(impute, W, train, hidden, candidates, score="squared"):
     with threadpool_limits(1):
         rows = []
         W_train = np.where(train, W, np.nan)
@@ -58,7 +58,8 @@ def _imputer_fold(impute, W, train, hidden, candidates):
             start = time.perf_counter()
             X_hat = _completed(impute(W_train, train, **params))
             seconds = time.perf_counter() - start
-            rows.append({"candidate": k, "test_error": fold_score(X_hat, W, hidden), "fit_time": seconds})
+            error = fold_score(X_hat, W, hidden, score)
+            rows.append({"candidate": k, "test_error": error, "fit_time": seconds})
         return rows
 
 
@@ -71,6 +72,7 @@ def select_imputer(
     n_folds: int = 5,
     random_state=0,
     n_jobs: int = 1,
+    score: str = "squared",
 ) -> ImputerSelection:
     """Choose the keyword arguments of an imputation method by hold-out cross-validation.
 
@@ -87,6 +89,9 @@ def select_imputer(
     n_folds, random_state : as in :func:`select_regularizer` (same seed, same folds).
     n_jobs : int >= 1
         Processes over the folds (``impute`` must then be picklable).
+    score : {"squared", "absolute"}, default "squared"
+        Fold score per hidden entry: squared error, or absolute error (robust to gross outliers among
+        the observed entries; :data:`nldr.model_selection.folds.SCORES`). ``cv_results_`` holds it.
 
     Returns
     -------
@@ -94,6 +99,7 @@ def select_imputer(
     """
     W, mask = check_masked_matrix(W, mask)
     n_jobs = check_count(n_jobs, "n_jobs")
+    score = check_score(score)
     if not callable(impute):
         raise ValueError(f"impute must be callable as impute(W, mask, **params); got {type(impute).__name__}")
     names = list(param_grid)
@@ -102,7 +108,7 @@ def select_imputer(
         raise ValueError("param_grid must give at least one value per parameter")
     candidates = [dict(zip(names, combo, strict=True)) for combo in product(*values)]
     folds = holdout_folds(mask, n_folds, random_state)
-    jobs = [(_imputer_fold, (impute, W, mask & ~hidden, hidden, candidates)) for hidden in folds]
+    jobs = [(_imputer_fold, (impute, W, mask & ~hidden, hidden, candidates, score)) for hidden in folds]
     rows = [row for fold in run_jobs(jobs, n_jobs) for row in fold]
     summary = summarise_folds(rows, ["candidate"])
     params = pd.DataFrame(candidates, columns=names) if names else pd.DataFrame(index=range(1))

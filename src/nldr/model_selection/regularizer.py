@@ -19,6 +19,7 @@ from ..regularizer import RegularizerResult, minimize_regularized
 from .folds import (
     DEFAULT_TAUS,
     GAMMA_MULTIPLES,
+    check_score,
     fold_score,
     holdout_folds,
     median_gamma,
@@ -60,7 +61,9 @@ class RegularizerSelection:
         )
 
 
-def _regularizer_path(W, train, hidden, S0, gammas, taus, center, warm_start, warm_gamma, stop, options):
+def _regularizer_path(
+    W, train, hidden, S0, gammas, taus, center, warm_start, warm_gamma, stop, options, score="squared"
+):
     """Solve one fold along ``taus`` (smallest first) for each of ``gammas`` (in the given order).
 
     Returns rows of (tau, gamma, test_error, fit_time). With ``warm_start`` every tau after the first
@@ -97,7 +100,7 @@ def _regularizer_path(W, train, hidden, S0, gammas, taus, center, warm_start, wa
                     {
                         "tau": float(tau),
                         "gamma": float(gamma),
-                        "test_error": fold_score(res.x, W, hidden),
+                        "test_error": fold_score(res.x, W, hidden, score),
                         "fit_time": time.perf_counter() - start,
                     }
                 )
@@ -135,6 +138,7 @@ def select_regularizer(
     fold_tol: float = 1e-7,
     fold_gtol: float = 1e-4,
     n_jobs: int = 1,
+    score: str = "squared",
     **solver_options,
 ) -> RegularizerSelection:
     """Choose tau and the kernel width of the regularizer by hold-out cross-validation.
@@ -183,6 +187,9 @@ def select_regularizer(
     n_jobs : int >= 1, default=1
         Processes over the folds (over the (fold, gamma) pairs if ``warm_gamma`` is False); each
         solve runs on one BLAS thread.
+    score : {"squared", "absolute"}, default "squared"
+        Fold score per hidden entry: squared error, or absolute error (robust to gross outliers among
+        the observed entries; :data:`nldr.model_selection.folds.SCORES`).
     **solver_options
         Passed to :func:`~nldr.regularizer.minimize_regularized` (``rho0, rho_growth, rho_max,
         max_inner, tol, gtol, eigensolver``); ``isolation_guard`` is always on.
@@ -204,6 +211,7 @@ def select_regularizer(
         if key in solver_options:
             raise ValueError(f"solver option {key!r} is set by select_regularizer; remove it")
     n_jobs = check_count(n_jobs, "n_jobs")
+    score = check_score(score)
     if rule not in ("one_se", "min"):
         raise ValueError(f"rule must be 'one_se' or 'min'; got {rule!r}")
     if stop_factor is not None and not check_positive(stop_factor, "stop_factor") > 1:
@@ -225,7 +233,7 @@ def select_regularizer(
         S0 = mean_fill(np.where(train, W, 0.0), train)
         for group in [gammas] if warm_gamma else [[g] for g in gammas]:
             path = (W, train, hidden, S0, group, taus, bool(center), warm_start, warm_gamma, stop)
-            jobs.append((_regularizer_path, (*path, fold_options)))
+            jobs.append((_regularizer_path, (*path, fold_options, score)))
     rows = [row for path in run_jobs(jobs, n_jobs) for row in path]
     grid = pd.MultiIndex.from_product([[float(g) for g in gammas], [float(t) for t in taus]])
     solved = pd.DataFrame(rows).groupby(["gamma", "tau"]).size().reindex(grid, fill_value=0).to_numpy()
