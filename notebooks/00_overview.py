@@ -47,13 +47,13 @@ from pathlib import Path
 import pandas as pd
 from IPython.display import Markdown, display
 
-from nldr.experiments.notebook import load_config, repo_root
+from nldr.experiments.notebook import load_config, need, repo_root
 
 root = repo_root()  # walks up from the working directory to the Snakefile
 config = load_config(root, configfile)
 base = Path(workdir) if workdir else root
 results = base / (results or config["results"])
-scored = pd.read_csv(base / (scorecard or results / "scorecard.csv"))
+scored = pd.read_csv(need(base / (scorecard or results / "scorecard.csv"), "scorecard"))
 banded = scored[scored["inside"].notna()]
 inside = banded["inside"].astype(str).eq("True")
 display(

@@ -46,14 +46,14 @@ from IPython.display import Markdown, display
 
 from nldr import tables
 from nldr.experiments import get
-from nldr.experiments.notebook import load_config, repo_root
+from nldr.experiments.notebook import load_config, need, repo_root
 
 root = repo_root()  # walks up from the working directory to the Snakefile
 config = load_config(root, configfile)
 base = Path(workdir) if workdir else root
 results = base / (results or config["results"])
 settings = settings or get("selection").settings(config)
-table_path = base / (table or results / "tables/selection.csv")
+table_path = need(base / (table or results / "tables/selection.csv"), "selection")
 run_paths = [base / r for r in runs] or sorted((results / "runs/selection").glob("*.csv"))
 data_dir = base / (data_dir or config["data"]["dir"])
 array_paths = [base / a for a in arrays] or [p.with_suffix(".npz") for p in run_paths]

@@ -62,7 +62,7 @@ from nldr.baselines import mean_impute
 from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import load_oil
 from nldr.experiments import get
-from nldr.experiments.notebook import cached, load_config, repo_root
+from nldr.experiments.notebook import cached, load_config, need, repo_root
 from nldr.experiments.table2 import METHODS, PEER_ROWS, random_mask
 from nldr.regularizer import minimize_regularized
 
@@ -71,7 +71,7 @@ config = load_config(root, configfile)
 base = Path(workdir) if workdir else root
 results = base / (results or config["results"])
 settings = settings or get("table2").settings(config)
-table_path = base / (table or results / "tables/table2.csv")
+table_path = need(base / (table or results / "tables/table2.csv"), "table2")
 run_paths = [base / r for r in runs] or sorted((results / "runs/table2").glob("*.csv"))
 data_dir = base / (data_dir or config["data"]["dir"])
 # the protocol this notebook shows: the config's (or the pipeline's) settings, nothing hard-coded

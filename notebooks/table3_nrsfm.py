@@ -48,7 +48,7 @@ from matplotlib import animation
 from nldr import tables
 from nldr.experiments import get
 from nldr.experiments.mocap import Reconstructions
-from nldr.experiments.notebook import load_config, repo_root
+from nldr.experiments.notebook import load_config, need, repo_root
 from nldr.nrsfm import center_per_frame
 
 root = repo_root()  # walks up from the working directory to the Snakefile
@@ -56,7 +56,7 @@ config = load_config(root, configfile)
 base = Path(workdir) if workdir else root
 results = base / (results or config["results"])
 settings = settings or get("table3").settings(config)
-table_path = base / (table or results / "tables/table3.csv")
+table_path = need(base / (table or results / "tables/table3.csv"), "table3")
 run_paths = [base / r for r in runs] or sorted((results / "runs/table3").glob("*.csv"))
 data_dir = base / (data_dir or config["data"]["dir"])
 figure_paths = [base / f for f in figures] or [results / "figures/fig1.png"]

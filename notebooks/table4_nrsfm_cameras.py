@@ -44,14 +44,14 @@ from IPython.display import Markdown, display
 
 from nldr import tables
 from nldr.experiments import get
-from nldr.experiments.notebook import load_config, repo_root
+from nldr.experiments.notebook import load_config, need, repo_root
 
 root = repo_root()  # walks up from the working directory to the Snakefile
 config = load_config(root, configfile)
 base = Path(workdir) if workdir else root
 results = base / (results or config["results"])
 settings = settings or get("table4").settings(config)
-table_path = base / (table or results / "tables/table4.csv")
+table_path = need(base / (table or results / "tables/table4.csv"), "table4")
 run_paths = [base / r for r in runs] or sorted((results / "runs/table4").glob("*.csv"))
 data_dir = base / (data_dir or config["data"]["dir"])
 

@@ -17,7 +17,7 @@ import tempfile
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
-__all__ = ["repo_root", "load_config", "merge_config", "cached"]
+__all__ = ["repo_root", "load_config", "merge_config", "need", "cached"]
 
 _MARKERS = ("Snakefile", "config/config.yaml")
 
@@ -75,6 +75,18 @@ def load_config(root: str | os.PathLike, configfile: str | os.PathLike = "") -> 
             raise ValueError(f"configfile {str(configfile)!r} not found (relative paths are from {root})")
         config = merge_config(config, yaml.safe_load(path.read_text()) or {})
     return config
+
+
+def need(path: str | os.PathLike, target: str) -> Path:
+    """``path`` if it is a file; else FileNotFoundError saying which Snakemake target builds it."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"{path} not found: build it with `snakemake -c all {target}` (for the quick protocol's "
+            f"results, `snakemake -c all {target} --configfile config/quick.yaml` and configfile = "
+            '"config/quick.yaml" in the parameters cell)'
+        )
+    return path
 
 
 def cached(
