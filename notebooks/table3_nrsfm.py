@@ -30,7 +30,7 @@ configfile = ""  # "": config/config.yaml (the paper's protocol); or e.g. "confi
 workdir = ""  # folder the paths below are relative to; "": the repository (found from its Snakefile)
 results = ""  # the results folder; "": the config's (results/, or results/quick/ for quick.yaml)
 table = ""  # "": <results>/tables/table3.csv, results folder from the config
-figures = []  # empty: <results>/figures/fig1.png
+figures = []  # the pipeline's figure files (this notebook draws Figure 1 itself)
 runs = []  # per-run CSVs; empty: every file in <results>/runs/table3/
 arrays = []  # per-run reconstructions (.npz); empty: those beside the CSVs
 settings = {}  # the experiment's config block as the pipeline ran it; empty: the config's
@@ -42,7 +42,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-from IPython.display import HTML, Image, Markdown, display
+from IPython.display import HTML, Markdown, display
 from matplotlib import animation
 
 from nldr import tables
@@ -59,7 +59,6 @@ settings = settings or get("table3").settings(config)
 table_path = need(base / (table or results / "tables/table3.csv"), "table3")
 run_paths = [base / r for r in runs] or sorted((results / "runs/table3").glob("*.csv"))
 data_dir = base / (data_dir or config["data"]["dir"])
-figure_paths = [base / f for f in figures] or [results / "figures/fig1.png"]
 
 # %% [markdown]
 # ## Table 3
@@ -85,10 +84,15 @@ all_runs.groupby(["sequence", "method"])["seconds"].median().unstack().round(1)
 # %% [markdown]
 # ## Figure 1
 # Red wire-frame: ground truth; blue dots: the kernel regularizer; black crosses: TNH. Red circles
-# mark points whose projection was observed in that frame, squares those that were missing.
+# mark points whose projection was observed in that frame, squares those that were missing. Drawn
+# here from the runs by the pipeline's own code (`Table3.draw`, which calls `nldr.plotting.figure1`;
+# change `n_frames` or `ours` there to explore); the pipeline's copies are `figures/fig1.{png,pdf,svg}`.
 
 # %%
-display(Image(filename=str(figure_paths[0])))
+fig1_arrays = {
+    p.stem: np.load(p) for p in [base / a for a in arrays] or [r.with_suffix(".npz") for r in run_paths]
+}
+fig = get("table3").draw("fig1", all_runs, fig1_arrays, data_dir)
 
 # %% [markdown]
 # ## A reconstructed sequence, turning
