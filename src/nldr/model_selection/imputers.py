@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
-from .._cv import run_jobs, summarise_folds
+from .._cv import run_jobs, say, summarise_folds
 from .._validation import check_count
 from ..baselines import peers, pkpca_impute, ppca_impute, rkpca_impute
 from ..baselines._masked import check_masked_matrix, mean_fill
@@ -50,7 +50,7 @@ def _completed(output) -> np.ndarray:
     return np.asarray(getattr(output, "x", output), dtype=np.float64)
 
 
-def _imputer_fold(impute, W, train, hidden, candidates):
+def _imputer_fold(impute, W, train, hidden, candidates, verbose=False, fold=""):
     with threadpool_limits(1):
         rows = []
         W_train = np.where(train, W, np.nan)
@@ -59,6 +59,8 @@ def _imputer_fold(impute, W, train, hidden, candidates):
             X_hat = _completed(impute(W_train, train, **params))
             seconds = time.perf_counter() - start
             rows.append({"candidate": k, "test_error": fold_score(X_hat, W, hidden), "fit_time": seconds})
+            error = rows[-1]["test_error"]
+            say(verbose, "select_imputer", f"{fold}{params}: hold-out MSE {error:.5g} ({seconds:.2f} s)")
         return rows
 
 
@@ -71,6 +73,7 @@ def select_imputer(
     n_folds: int = 5,
     random_state=0,
     n_jobs: int = 1,
+    verbose: bool = False,
 ) -> ImputerSelection:
     """Choose the keyword arguments of an imputation method by hold-out cross-validation.
 
@@ -87,6 +90,9 @@ def select_imputer(
     n_folds, random_state : as in :func:`select_regularizer` (same seed, same folds).
     n_jobs : int >= 1
         Processes over the folds (``impute`` must then be picklable).
+    verbose : bool, default=False
+        Print progress to stdout: a line per candidate fit (its fold, parameters, hold-out error and
+        seconds; from the worker processes when ``n_jobs > 1``), a line per finished fold, the choice.
 
     Returns
     -------
@@ -102,12 +108,22 @@ def select_imputer(
         raise ValueError("param_grid must give at least one value per parameter")
     candidates = [dict(zip(names, combo, strict=True)) for combo in product(*values)]
     folds = holdout_folds(mask, n_folds, random_state)
-    jobs = [(_imputer_fold, (impute, W, mask & ~hidden, hidden, candidates)) for hidden in folds]
-    rows = [row for fold in run_jobs(jobs, n_jobs) for row in fold]
+    name = getattr(impute, "__name__", type(impute).__name__)
+    say(verbose, "select_imputer", f"{name}: {len(candidates)} candidates, {len(folds)} folds")
+    jobs = [
+        (_imputer_fold, (impute, W, mask & ~h, h, candidates, verbose, f"fold {i + 1}/{len(folds)} "))
+        for i, h in enumerate(folds)
+    ]
+
+    def done(finished, total, seconds):
+        say(verbose, "select_imputer", f"folds done: {finished}/{total} ({seconds:.1f} s)")
+
+    rows = [row for fold in run_jobs(jobs, n_jobs, done) for row in fold]
     summary = summarise_folds(rows, ["candidate"])
     params = pd.DataFrame(candidates, columns=names) if names else pd.DataFrame(index=range(1))
     cv_results = pd.concat([params, summary.drop(columns="candidate")], axis=1)
     best = int(np.argmin(cv_results["mean_test_error"].to_numpy()))
+    say(verbose, "select_imputer", f"chose {candidates[best]}; refitting on every observed entry")
     with threadpool_limits(1):
         result = impute(np.where(mask, W, np.nan), mask, **candidates[best])
     return ImputerSelection(candidates[best], cv_results, result, folds)
