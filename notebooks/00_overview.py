@@ -112,6 +112,9 @@ from IPython.display import Image
 
 report_path = base / (report or results / "report.md")
 text = report_path.read_text()
-display(Markdown(re.sub(r"!\[[^\]]*\]\([^)]*\)", "", text)))
+# the "why" links point into the checkout's docs/, a path of this machine: show the section names
+# (sections of docs/REPRODUCTION.md; the report's scorecard.html embeds them as working links)
+shown = re.sub(r"\[([^\]]+)\]\([^)]*REPRODUCTION\.md(#[^)]*)?\)", r"`\1`", text)
+display(Markdown(re.sub(r"!\[[^\]]*\]\([^)]*\)", "", shown)))
 for name in re.findall(r"!\[[^\]]*\]\(([^)]*)\)", text):
     display(Image(filename=str(report_path.parent / name)))
