@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 CORES ?= all
 
-.PHONY: setup reproduce quick scale test mutants lint dryrun bench clean
+.PHONY: setup reproduce quick scale test mutants lint dryrun bench docs clean
 
 $(BIN)/.installed: pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -43,6 +43,9 @@ bench: setup  ## speed benchmarks, CSVs in results/benchmarks/ (docs/PERFORMANCE
 	$(BIN)/python benchmarks/bench_solvers.py
 	$(BIN)/python benchmarks/profile_solvers.py
 
+docs: setup  ## the documentation site in site/ (API from the docstrings, notebooks); warnings are errors
+	$(BIN)/mkdocs build --strict
+
 clean:  ## remove generated results (not the data or the environment)
 	rm -rf results/tables results/figures results/runs results/notebooks results/benchmarks results/logs \
-		results/quick results/report.md results/report.html results/scorecard.csv
+		results/quick results/report.md results/report.html results/scorecard.csv results/scorecard.html site

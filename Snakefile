@@ -29,6 +29,6 @@ rule all:
     default_target: True
     input:
         [target_of(e) for e in PAPER],
-        [figure_path(f) for e in PAPER for f in e.figures],
         rules.scorecard.output,
-        rules.overview.output,
+        notebook_path("00_overview"),
+        notebook_path("00_overview", "html"),

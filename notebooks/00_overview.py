@@ -35,8 +35,11 @@
 # paper leaves open is stated, with evidence, in `docs/REPRODUCTION.md`.
 
 # %% tags=["parameters"]
-scorecard = "results/scorecard.csv"
-report = "results/report.md"
+configfile = ""  # "": config/config.yaml (the paper's protocol); or e.g. "config/quick.yaml"
+workdir = ""  # folder the paths below are relative to; "": the repository (found from its Snakefile)
+results = ""  # the results folder; "": the config's (results/, or results/quick/ for quick.yaml)
+scorecard = ""  # "": <results>/scorecard.csv, results folder from the config
+report = ""  # "": <results>/report.md
 
 # %%
 from pathlib import Path
@@ -44,8 +47,13 @@ from pathlib import Path
 import pandas as pd
 from IPython.display import Markdown, display
 
-root = Path.cwd() if (Path.cwd() / "Snakefile").exists() else Path.cwd().parent
-scored = pd.read_csv(root / scorecard)
+from nldr.experiments.notebook import load_config, need, repo_root
+
+root = repo_root()  # walks up from the working directory to the Snakefile
+config = load_config(root, configfile)
+base = Path(workdir) if workdir else root
+results = base / (results or config["results"])
+scored = pd.read_csv(need(base / (scorecard or results / "scorecard.csv"), "scorecard"))
 banded = scored[scored["inside"].notna()]
 inside = banded["inside"].astype(str).eq("True")
 display(
@@ -94,16 +102,19 @@ ax.set_xlabel("ours vs paper (%)  green: inside band, red: outside, grey: no ban
 fig.tight_layout()
 
 # %% [markdown]
-# The full scorecard with its figures and provenance is `results/report.md`; here it is, with the
-# figures it links to shown from their files.
+# The full scorecard with its figures and provenance is `report.md` in the results folder; here it
+# is, with the figures it links to shown from their files.
 
 # %%
 import re
 
 from IPython.display import Image
 
-report_path = root / report
+report_path = base / (report or results / "report.md")
 text = report_path.read_text()
-display(Markdown(re.sub(r"!\[[^\]]*\]\([^)]*\)", "", text)))
+# the "why" links point into the checkout's docs/, a path of this machine: show the section names
+# (sections of docs/REPRODUCTION.md; the report's scorecard.html embeds them as working links)
+shown = re.sub(r"\[([^\]]+)\]\([^)]*REPRODUCTION\.md(#[^)]*)?\)", r"`\1`", text)
+display(Markdown(re.sub(r"!\[[^\]]*\]\([^)]*\)", "", shown)))
 for name in re.findall(r"!\[[^\]]*\]\(([^)]*)\)", text):
     display(Image(filename=str(report_path.parent / name)))

@@ -26,12 +26,15 @@
 # The runs happened upstream (`snakemake -c all selection`); this notebook reads their outputs.
 
 # %% tags=["parameters"]
-table = "results/tables/selection.csv"
-runs = []  # per-mask CSVs; empty means every file in results/runs/selection/
-arrays = []  # per-mask CV curves (.npz); empty means those beside the CSVs
+configfile = ""  # "": config/config.yaml (the paper's protocol); or e.g. "config/quick.yaml"
+workdir = ""  # folder the paths below are relative to; "": the repository (found from its Snakefile)
+results = ""  # the results folder; "": the config's (results/, or results/quick/ for quick.yaml)
+table = ""  # "": <results>/tables/selection.csv, results folder from the config
+runs = []  # per-mask CSVs; empty: every file in <results>/runs/selection/
+arrays = []  # per-mask CV curves (.npz); empty: those beside the CSVs
 figures = []
-settings = {}  # the experiment's config block as the pipeline ran it
-data_dir = "resources"
+settings = {}  # the experiment's config block as the pipeline ran it; empty: the config's
+data_dir = ""  # folder holding oil/ and nrsfm/; "": the config's data.dir
 
 # %%
 from pathlib import Path
@@ -42,10 +45,18 @@ import pandas as pd
 from IPython.display import Markdown, display
 
 from nldr import tables
+from nldr.experiments import get
+from nldr.experiments.notebook import load_config, need, repo_root
 
-root = Path.cwd() if (Path.cwd() / "Snakefile").exists() else Path.cwd().parent
-run_paths = [Path(r) for r in runs] or sorted((root / "results/runs/selection").glob("*.csv"))
-array_paths = [Path(a) for a in arrays] or [p.with_suffix(".npz") for p in run_paths]
+root = repo_root()  # walks up from the working directory to the Snakefile
+config = load_config(root, configfile)
+base = Path(workdir) if workdir else root
+results = base / (results or config["results"])
+settings = settings or get("selection").settings(config)
+table_path = need(base / (table or results / "tables/selection.csv"), "selection")
+run_paths = [base / r for r in runs] or sorted((results / "runs/selection").glob("*.csv"))
+data_dir = base / (data_dir or config["data"]["dir"])
+array_paths = [base / a for a in arrays] or [p.with_suffix(".npz") for p in run_paths]
 
 # %% [markdown]
 # ## The table
@@ -53,7 +64,7 @@ array_paths = [Path(a) for a in arrays] or [p.with_suffix(".npz") for p in run_p
 # parentheses.
 
 # %%
-result = pd.read_csv(root / table)
+result = pd.read_csv(table_path)
 display(Markdown(tables.to_markdown(result, digits=3, metrics=["sse"], transpose=True)))
 
 # %% [markdown]

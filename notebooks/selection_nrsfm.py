@@ -30,12 +30,15 @@
 # The runs happened upstream (`snakemake -c all selection_nrsfm`); this notebook reads their outputs.
 
 # %% tags=["parameters"]
-table = "results/tables/selection_nrsfm.csv"
-runs = []  # per-job CSVs; empty means every file in results/runs/selection_nrsfm/
-arrays = []  # per-job CV curves (.npz); empty means those beside the CSVs
+configfile = ""  # "": config/config.yaml (the paper's protocol); or e.g. "config/quick.yaml"
+workdir = ""  # folder the paths below are relative to; "": the repository (found from its Snakefile)
+results = ""  # the results folder; "": the config's (results/, or results/quick/ for quick.yaml)
+table = ""  # "": <results>/tables/selection_nrsfm.csv, results folder from the config
+runs = []  # per-job CSVs; empty: every file in <results>/runs/selection_nrsfm/
+arrays = []  # per-job CV curves (.npz); empty: those beside the CSVs
 figures = []
 settings = {}  # the experiment's config block as the pipeline ran it (with the table3/table4 blocks)
-data_dir = "resources"
+data_dir = ""  # folder holding oil/ and nrsfm/; "": the config's data.dir
 
 # %%
 from pathlib import Path
@@ -46,10 +49,18 @@ import pandas as pd
 from IPython.display import Markdown, display
 
 from nldr import tables
+from nldr.experiments import get
+from nldr.experiments.notebook import load_config, need, repo_root
 
-root = Path.cwd() if (Path.cwd() / "Snakefile").exists() else Path.cwd().parent
-run_paths = [Path(r) for r in runs] or sorted((root / "results/runs/selection_nrsfm").glob("*.csv"))
-array_paths = [Path(a) for a in arrays] or [p.with_suffix(".npz") for p in run_paths]
+root = repo_root()  # walks up from the working directory to the Snakefile
+config = load_config(root, configfile)
+base = Path(workdir) if workdir else root
+results = base / (results or config["results"])
+settings = settings or get("selection_nrsfm").settings(config)
+table_path = need(base / (table or results / "tables/selection_nrsfm.csv"), "selection_nrsfm")
+run_paths = [base / r for r in runs] or sorted((results / "runs/selection_nrsfm").glob("*.csv"))
+data_dir = base / (data_dir or config["data"]["dir"])
+array_paths = [base / a for a in arrays] or [p.with_suffix(".npz") for p in run_paths]
 
 # %% [markdown]
 # ## The table
@@ -57,7 +68,7 @@ array_paths = [Path(a) for a in arrays] or [p.with_suffix(".npz") for p in run_p
 # numbers are in parentheses beside the paper-value rows (Table 3) and the oracle rows (Table 4).
 
 # %%
-result = pd.read_csv(root / table)
+result = pd.read_csv(table_path)
 for prefix in ("Table 3", "Table 4"):
     part = result[result["setting"].str.startswith(prefix)]
     if len(part):

@@ -29,26 +29,38 @@
 # outputs. Run it in Jupyter from the repository after the pipeline, or let the pipeline execute it.
 
 # %% tags=["parameters"]
-table = "results/tables/table1.csv"
-figures = ["results/figures/fig3.png"]
-runs = []  # per-draw CSVs; empty means every file in results/runs/table1/
+configfile = ""  # "": config/config.yaml (the paper's protocol); or e.g. "config/quick.yaml"
+workdir = ""  # folder the paths below are relative to; "": the repository (found from its Snakefile)
+results = ""  # the results folder; "": the config's (results/, or results/quick/ for quick.yaml)
+table = ""  # "": <results>/tables/table1.csv, results folder from the config
+figures = []  # the pipeline's figure files (this notebook draws Figure 3 itself)
+runs = []  # per-draw CSVs; empty: every file in <results>/runs/table1/
 arrays = []  # per-draw arrays (none for Table 1)
-settings = {}  # the experiment's config block as the pipeline ran it; empty: the paper's protocol
-data_dir = "resources"  # folder holding oil/ and nrsfm/
+settings = {}  # the experiment's config block as the pipeline ran it; empty: the config's
+data_dir = ""  # folder holding oil/ and nrsfm/; "": the config's data.dir
 
 # %%
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from IPython.display import Image, Markdown, display
+from IPython.display import Markdown, display
 
 from nldr import tables
+from nldr.experiments import get
+from nldr.experiments.notebook import load_config, need, repo_root
+from nldr.experiments.table1 import figure3_curves
+from nldr.plotting import figure3
 from nldr.robust_kpca import rank_penalty_threshold, shrink_eigenvalues
 
-root = Path.cwd() if (Path.cwd() / "Snakefile").exists() else Path.cwd().parent
-table_path = root / table
-run_paths = [Path(p) for p in runs] or sorted((root / "results/runs/table1").glob("*.csv"))
+root = repo_root()  # walks up from the working directory to the Snakefile
+config = load_config(root, configfile)
+base = Path(workdir) if workdir else root
+results = base / (results or config["results"])
+settings = settings or get("table1").settings(config)
+table_path = need(base / (table or results / "tables/table1.csv"), "table1")
+run_paths = [base / r for r in runs] or sorted((results / "runs/table1").glob("*.csv"))
+data_dir = base / (data_dir or config["data"]["dir"])
 
 # %% [markdown]
 # ## What the closed form does to a spectrum
@@ -84,16 +96,18 @@ published.round(4)
 # %% [markdown]
 # ## Figure 3
 # KPCA at every rank (dotted), and the closed form at every rank its tau sweep produced: the line
-# joins the best error per rank, the bars span best to worst over all tau giving that rank.
+# joins the best error per rank, the shaded band spans best to worst over all tau giving that rank.
+# Drawn here from the runs by `nldr.plotting.figure3`, the function the pipeline draws
+# `figures/fig3.{png,pdf,svg}` with.
 
 # %%
-display(Image(filename=str(root / figures[0])))
+all_runs = pd.concat([pd.read_csv(p) for p in run_paths], ignore_index=True)
+fig = figure3(figure3_curves(all_runs))
 
 # %% [markdown]
 # ## Which settings won, per draw
 
 # %%
-all_runs = pd.concat([pd.read_csv(p) for p in run_paths], ignore_index=True)
 all_runs[all_runs["best"]][
     ["noise_std", "seed", "method", "tau", "rank", "manifold_error", "classification_error"]
 ].sort_values(["noise_std", "method", "seed"])

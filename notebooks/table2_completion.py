@@ -14,12 +14,13 @@
 # %% [markdown]
 # # Table 2: completing the oil-flow matrix
 #
-# The first 100 oil-flow training rows (12 features) lose each entry independently with probability
-# p. The regularizer completes the matrix by minimising
+# The first oil-flow training rows (12 features; the paper uses 100, the config's `n_rows`) lose each
+# entry independently with probability p. The regularizer completes the matrix by minimising
 #
 # $$\|Z\circ(W-S)\|_F^2 + \tfrac{\rho}{2}\|K(S)-C^\top C\|_F^2 + \tau\|C\|_*$$
 #
-# over S and C while ρ grows (Algorithm 1), with τ = 0.1 and an RBF kernel of inverse width 0.075.
+# over S and C while ρ grows (Algorithm 1), with the paper's τ = 0.1 and RBF inverse width γ = 0.075
+# (the config's values are printed below).
 # Five baselines complete the same masks: column means (everyone's starting point), 1-NN from fully
 # observed rows, PPCA, probabilistic KPCA (PKPCA) and robust KPCA (RKPCA). The error is the sum of
 # squared errors over the whole matrix.
@@ -29,16 +30,24 @@
 # SoftImpute (nuclear-norm completion), each knob chosen by hold-out cross-validation on the observed
 # entries of the same mask; missForest runs on the first masks of each p only (the caption says how many).
 #
-# The 4 x 50 masks ran upstream (`snakemake -c all table2`); this notebook reads their results and
-# re-runs one solve to show how the solver converges.
+# The masks ran upstream (`snakemake -c all table2`; the paper's protocol is 4 values of p x 50
+# masks); this notebook reads their results, and shows one solve step by step: read from the
+# notebook's cache by default, solved afresh with `RECOMPUTE = True`.
+#
+# Run by hand, set `configfile` to the protocol whose results you want to read (`""`: the paper's,
+# `"config/quick.yaml"`: the quick one under results/quick/).
 
 # %% tags=["parameters"]
-table = "results/tables/table2.csv"
-runs = []  # per-mask CSVs; empty means every file in results/runs/table2/
+RECOMPUTE = False  # True: solve the step-by-step example again instead of reading the cached solve
+configfile = ""  # "": config/config.yaml (the paper's protocol); or e.g. "config/quick.yaml"
+workdir = ""  # folder the paths below are relative to; "": the repository (found from its Snakefile)
+results = ""  # the results folder; "": the config's (results/, or results/quick/ for quick.yaml)
+table = ""  # "": <results>/tables/table2.csv, results folder from the config
+runs = []  # per-mask CSVs; empty: every file in <results>/runs/table2/
 figures = []
 arrays = []
-settings = {}  # the experiment's config block as the pipeline ran it; empty: the paper's protocol
-data_dir = "resources"  # folder holding oil/ and nrsfm/
+settings = {}  # the experiment's config block as the pipeline ran it; empty: the config's
+data_dir = ""  # folder holding oil/ and nrsfm/; "": the config's data.dir
 
 # %%
 from pathlib import Path
@@ -52,19 +61,27 @@ from nldr import tables
 from nldr.baselines import mean_impute
 from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import load_oil
+from nldr.experiments import get
+from nldr.experiments.notebook import cached, load_config, need, repo_root
 from nldr.experiments.table2 import METHODS, PEER_ROWS, random_mask
 from nldr.regularizer import minimize_regularized
 
-root = Path.cwd() if (Path.cwd() / "Snakefile").exists() else Path.cwd().parent
-run_paths = [Path(r) for r in runs] or sorted((root / "results/runs/table2").glob("*.csv"))
-data_dir = root / data_dir
-# the protocol this notebook shows (the pipeline passes its settings; alone, the paper's values)
-n_rows = settings.get("n_rows", 100)
-gamma = settings.get("gamma", 0.075)
-ours = {k: v for k, v in settings.get("methods", {}).get("Ours", {"tau": 0.1}).items()}
-ps = settings.get("p", [0.25])
-p = 0.25 if 0.25 in ps else ps[0]
-seed = settings.get("seed", 2016)
+root = repo_root()  # walks up from the working directory to the Snakefile
+config = load_config(root, configfile)
+base = Path(workdir) if workdir else root
+results = base / (results or config["results"])
+settings = settings or get("table2").settings(config)
+table_path = need(base / (table or results / "tables/table2.csv"), "table2")
+run_paths = [base / r for r in runs] or sorted((results / "runs/table2").glob("*.csv"))
+data_dir = base / (data_dir or config["data"]["dir"])
+# the protocol this notebook shows: the config's (or the pipeline's) settings, nothing hard-coded
+n_rows, gamma, seed = settings["n_rows"], settings["gamma"], settings["seed"]
+ours = dict(settings["methods"]["Ours"])
+p = 0.25 if 0.25 in settings["p"] else settings["p"][0]
+print(
+    f"protocol: first {n_rows} rows, p in {settings['p']}, {settings['n_masks']} masks per p, "
+    f"gamma = {gamma}, Ours: {ours}; results from {results.relative_to(base)}/"
+)
 
 # %% [markdown]
 # ## Table 2
@@ -72,7 +89,7 @@ seed = settings.get("seed", 2016)
 # least one fully observed row, and at p = 0.5 there is almost never one).
 
 # %%
-result = pd.read_csv(root / table)
+result = pd.read_csv(table_path)
 display(Markdown(tables.to_markdown(result, digits=3, metrics=["sse"], transpose=True)))
 
 # %% [markdown]
@@ -103,7 +120,9 @@ fig.tight_layout()
 
 # %% [markdown]
 # ## One solve, step by step
-# The first mask of the pipeline's runs at p = 0.25 (or its first p), with its settings.
+# The first mask of the runs at p = 0.25 (or the protocol's first p, when 0.25 is not among them), with
+# the protocol's settings: the same mask as the run with seed `seed`. Read from the cache under
+# `<results>/notebook_cache/` unless `RECOMPUTE` is true (or the settings changed).
 # Energies of different ρ stages are not comparable (ρ multiplies the kernel mismatch), so each
 # stage has its own colour; within a stage the energy never increases.
 
@@ -112,8 +131,14 @@ X, _ = load_oil("train", data_dir)
 X = X[:n_rows]
 mask = random_mask(X.shape, p, seed)
 W = np.where(mask, X, np.nan)
-res = minimize_regularized(MaskedLeastSquares(W, mask), mean_impute(W, mask), gamma=gamma, **ours)
-print(res.message)
+res = cached(
+    results / "notebook_cache",
+    "table2_one_solve",
+    {"n_rows": n_rows, "p": p, "seed": seed, "gamma": gamma, "ours": ours},
+    lambda: minimize_regularized(MaskedLeastSquares(W, mask), mean_impute(W, mask), gamma=gamma, **ours),
+    recompute=RECOMPUTE,
+)
+print(f"p = {p}, seed = {seed}:", res.message)
 print(
     f"SSE: mean imputation {np.sum((mean_impute(W, mask) - X) ** 2):.2f}, ours {np.sum((res.x - X) ** 2):.2f}"
 )

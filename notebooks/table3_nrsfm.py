@@ -26,12 +26,15 @@
 # The runs happened upstream (`snakemake -c all table3`); this notebook reads their outputs.
 
 # %% tags=["parameters"]
-table = "results/tables/table3.csv"
-figures = ["results/figures/fig1.png"]
-runs = []  # per-run CSVs; empty means every file in results/runs/table3/
-arrays = []  # per-run reconstructions (.npz); empty means those beside the CSVs
-settings = {}  # the experiment's config block as the pipeline ran it; empty: the paper's protocol
-data_dir = "resources"  # folder holding oil/ and nrsfm/
+configfile = ""  # "": config/config.yaml (the paper's protocol); or e.g. "config/quick.yaml"
+workdir = ""  # folder the paths below are relative to; "": the repository (found from its Snakefile)
+results = ""  # the results folder; "": the config's (results/, or results/quick/ for quick.yaml)
+table = ""  # "": <results>/tables/table3.csv, results folder from the config
+figures = []  # the pipeline's figure files (this notebook draws Figure 1 itself)
+runs = []  # per-run CSVs; empty: every file in <results>/runs/table3/
+arrays = []  # per-run reconstructions (.npz); empty: those beside the CSVs
+settings = {}  # the experiment's config block as the pipeline ran it; empty: the config's
+data_dir = ""  # folder holding oil/ and nrsfm/; "": the config's data.dir
 
 # %%
 from pathlib import Path
@@ -39,15 +42,23 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-from IPython.display import HTML, Image, Markdown, display
+from IPython.display import HTML, Markdown, display
 from matplotlib import animation
 
 from nldr import tables
+from nldr.experiments import get
 from nldr.experiments.mocap import Reconstructions
+from nldr.experiments.notebook import load_config, need, repo_root
 from nldr.nrsfm import center_per_frame
 
-root = Path.cwd() if (Path.cwd() / "Snakefile").exists() else Path.cwd().parent
-run_paths = [Path(r) for r in runs] or sorted((root / "results/runs/table3").glob("*.csv"))
+root = repo_root()  # walks up from the working directory to the Snakefile
+config = load_config(root, configfile)
+base = Path(workdir) if workdir else root
+results = base / (results or config["results"])
+settings = settings or get("table3").settings(config)
+table_path = need(base / (table or results / "tables/table3.csv"), "table3")
+run_paths = [base / r for r in runs] or sorted((results / "runs/table3").glob("*.csv"))
+data_dir = base / (data_dir or config["data"]["dir"])
 
 # %% [markdown]
 # ## Table 3
@@ -55,7 +66,7 @@ run_paths = [Path(r) for r in runs] or sorted((root / "results/runs/table3").glo
 # shows one mask per sequence.
 
 # %%
-result = pd.read_csv(root / table)
+result = pd.read_csv(table_path)
 display(Markdown(tables.to_markdown(result, metrics=["e3d"])))
 
 # %% [markdown]
@@ -73,10 +84,15 @@ all_runs.groupby(["sequence", "method"])["seconds"].median().unstack().round(1)
 # %% [markdown]
 # ## Figure 1
 # Red wire-frame: ground truth; blue dots: the kernel regularizer; black crosses: TNH. Red circles
-# mark points whose projection was observed in that frame, squares those that were missing.
+# mark points whose projection was observed in that frame, squares those that were missing. Drawn
+# here from the runs by the pipeline's own code (`Table3.draw`, which calls `nldr.plotting.figure1`;
+# change `n_frames` or `ours` there to explore); the pipeline's copies are `figures/fig1.{png,pdf,svg}`.
 
 # %%
-display(Image(filename=str(root / figures[0])))
+fig1_arrays = {
+    p.stem: np.load(p) for p in [base / a for a in arrays] or [r.with_suffix(".npz") for r in run_paths]
+}
+fig = get("table3").draw("fig1", all_runs, fig1_arrays, data_dir)
 
 # %% [markdown]
 # ## A reconstructed sequence, turning

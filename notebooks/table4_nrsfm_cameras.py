@@ -24,12 +24,15 @@
 # The runs happened upstream (`snakemake -c all table4`); this notebook reads their outputs.
 
 # %% tags=["parameters"]
-table = "results/tables/table4.csv"
-runs = []  # per-run CSVs; empty means every file in results/runs/table4/
+configfile = ""  # "": config/config.yaml (the paper's protocol); or e.g. "config/quick.yaml"
+workdir = ""  # folder the paths below are relative to; "": the repository (found from its Snakefile)
+results = ""  # the results folder; "": the config's (results/, or results/quick/ for quick.yaml)
+table = ""  # "": <results>/tables/table4.csv, results folder from the config
+runs = []  # per-run CSVs; empty: every file in <results>/runs/table4/
 figures = []
 arrays = []  # per-run reconstructions and cameras (.npz)
-settings = {}  # the experiment's config block as the pipeline ran it; empty: the paper's protocol
-data_dir = "resources"  # folder holding oil/ and nrsfm/
+settings = {}  # the experiment's config block as the pipeline ran it; empty: the config's
+data_dir = ""  # folder holding oil/ and nrsfm/; "": the config's data.dir
 
 # %%
 from pathlib import Path
@@ -40,16 +43,24 @@ import pandas as pd
 from IPython.display import Markdown, display
 
 from nldr import tables
+from nldr.experiments import get
+from nldr.experiments.notebook import load_config, need, repo_root
 
-root = Path.cwd() if (Path.cwd() / "Snakefile").exists() else Path.cwd().parent
-run_paths = [Path(r) for r in runs] or sorted((root / "results/runs/table4").glob("*.csv"))
+root = repo_root()  # walks up from the working directory to the Snakefile
+config = load_config(root, configfile)
+base = Path(workdir) if workdir else root
+results = base / (results or config["results"])
+settings = settings or get("table4").settings(config)
+table_path = need(base / (table or results / "tables/table4.csv"), "table4")
+run_paths = [base / r for r in runs] or sorted((results / "runs/table4").glob("*.csv"))
+data_dir = base / (data_dir or config["data"]["dir"])
 
 # %% [markdown]
 # ## Table 4
 # Cells read *ours (paper)*.
 
 # %%
-result = pd.read_csv(root / table)
+result = pd.read_csv(table_path)
 display(Markdown(tables.to_markdown(result, metrics=["e3d"])))
 
 # %% [markdown]

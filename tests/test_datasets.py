@@ -4,7 +4,9 @@ import os
 import shutil
 
 import numpy as np
+import pooch
 import pytest
+import requests
 
 from nldr import datasets
 from nldr.datasets import FILES, DataError, fetch, load_mocap, load_oil
@@ -105,15 +107,19 @@ def test_missing_from_mirror_names_the_file_and_the_fix(tmp_path):
 def test_no_mirror_and_no_network_fails_clearly(tmp_path, monkeypatch):
     monkeypatch.delenv("NLDR_DATA_MIRROR", raising=False)
 
-    def offline(*args, **kwargs):
-        raise OSError("network is unreachable")
+    attempts = []
 
-    monkeypatch.setattr(datasets.urllib.request, "urlopen", offline)
+    def offline(*args, **kwargs):
+        attempts.append(args[0] if args else kwargs.get("url"))
+        raise requests.ConnectionError("network is unreachable")
+
+    monkeypatch.setattr(requests, "get", offline)  # what pooch's HTTP downloader calls
     with pytest.raises(
         DataError, match=r"oil/DataTst\.txt: download from https://.* failed.*NLDR_DATA_MIRROR"
     ):
         fetch("oil/DataTst.txt", tmp_path / "res")
     assert not (tmp_path / "res" / "oil" / "DataTst.txt").exists() and _no_leftovers(tmp_path)
+    assert attempts == [FILES["oil/DataTst.txt"].url] * (1 + datasets.DOWNLOAD_RETRIES)  # retried
 
 
 def test_unknown_names_are_rejected():
@@ -161,3 +167,43 @@ def test_verify_present_names_every_corrupt_file_and_skips_absent_ones(tmp_path,
     path.write_text("<html></html>")
     with pytest.raises(DataError, match=r"oil/DataTrn\.txt: .* has sha256"):
         datasets.verify_present(dest)
+
+
+def test_library_users_get_the_os_cache_folder_and_a_pooch_registry(tmp_path, monkeypatch):
+    monkeypatch.delenv("NLDR_DATA_DIR", raising=False)
+    assert datasets.default_data_dir() == pooch.os_cache("nldr")
+    monkeypatch.setenv("NLDR_DATA_DIR", str(tmp_path))
+    assert datasets.default_data_dir() == tmp_path
+    reg = datasets.registry()
+    assert set(reg) == set(FILES) and all(reg[k] == f"sha256:{FILES[k].sha256}" for k in FILES)
+
+
+def test_download_goes_through_pooch_and_checks_the_hash(tmp_path, monkeypatch, mirror_copy):
+    """A download from a local HTTP server (no network needed): the file arrives verified; a server
+    giving other bytes leaves no file behind and the error names the download."""
+    import functools
+    import http.server
+    import threading
+
+    served = tmp_path / "served"
+    shutil.copytree(mirror_copy / "oil", served / "oil")
+    (served / "oil" / "garbage.txt").write_text("<html>not the data</html>\n")
+    handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(served))
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    monkeypatch.setenv("NO_PROXY", "127.0.0.1")
+    try:
+        base = f"http://127.0.0.1:{server.server_port}/oil"
+        spec = FILES["oil/DataTrn.txt"]
+        local = datasets.DataFile(spec.relpath, f"{base}/DataTrn.txt", spec.sha256)
+        monkeypatch.setitem(FILES, spec.relpath, local)
+        path = fetch(spec.relpath, tmp_path / "res", mirror="")
+        assert path == tmp_path / "res" / "oil" / "DataTrn.txt" and datasets.verify(path, spec.relpath)
+        wrong = datasets.DataFile(spec.relpath, f"{base}/garbage.txt", spec.sha256)
+        monkeypatch.setitem(FILES, spec.relpath, wrong)
+        monkeypatch.setattr(datasets, "DOWNLOAD_RETRIES", 0)
+        with pytest.raises(DataError, match=r"oil/DataTrn\.txt: download from .*garbage\.txt failed"):
+            fetch(spec.relpath, tmp_path / "other", mirror="")
+        assert not [p for p in (tmp_path / "other").rglob("*") if p.is_file()]
+    finally:
+        server.shutdown()

@@ -297,3 +297,31 @@ def test_baseline_grid_rejects_an_unknown_method():
     _, W, mask = denoising_problem(n=12, d=4)
     with pytest.raises(ValueError, match="method"):
         baseline_grid("Ours", W, mask)
+
+
+def test_verbose_reports_every_candidate_solve_and_changes_nothing(capsys):
+    _, W, mask = denoising_problem(n=25, d=5)
+    kwargs = dict(taus=[0.1, 1.0], gammas=[0.5, 1.0], n_folds=2, stop_factor=None)
+    quiet = select_regularizer(W, mask, **kwargs)
+    assert capsys.readouterr().out == ""
+    loud = select_regularizer(W, mask, verbose=True, **kwargs)
+    lines = capsys.readouterr().out.splitlines()
+    solves = [line for line in lines if "hold-out MSE" in line]
+    assert len(solves) == 2 * 2 * 2  # folds x gammas x taus, each once
+    for fold in (1, 2):
+        for gamma in (0.5, 1.0):
+            for tau in (0.1, 1.0):
+                assert sum(f"fold {fold}/2 gamma={gamma:.4g} tau={tau:.4g}:" in s for s in solves) == 1
+    assert any("fold jobs done: 2/2" in line for line in lines)
+    assert any(f"chose tau={loud.tau_:.4g}, gamma={loud.gamma_:.4g}" in line for line in lines)
+    assert all(line.startswith("[select_regularizer] ") for line in lines)
+    np.testing.assert_array_equal(loud.result_.x, quiet.result_.x)
+    np.testing.assert_array_equal(
+        loud.cv_results_["mean_test_error"].to_numpy(), quiet.cv_results_["mean_test_error"].to_numpy()
+    )
+
+    impute, _ = baseline_grid("PPCA", W, mask)
+    sel = select_imputer(impute, W, mask, {"n_components": [1, 2]}, n_folds=3, verbose=True)
+    lines = capsys.readouterr().out.splitlines()
+    assert sum("hold-out MSE" in line for line in lines) == 2 * 3
+    assert any(f"chose {sel.best_params_}" in line for line in lines)

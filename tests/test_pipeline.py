@@ -1,5 +1,8 @@
 """The pipeline end to end on the quick protocol, in a scratch working directory."""
 
+import base64
+import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -40,11 +43,16 @@ def test_table1_target_builds_table_figure_and_notebook(quick_run):
     published = table.dropna(subset=["paper"])
     assert len(published) == 12  # every number of the paper's Table 1 has ours beside it
     assert published["value"].notna().all()
-    for ext in ("md", "tex"):
+    for ext in ("md", "html", "tex"):
         assert (quick_run / R / f"tables/table1.{ext}").stat().st_size > 0
     assert (quick_run / R / "figures/fig3.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (quick_run / R / "figures/fig3.pdf").read_bytes()[:5] == b"%PDF-"
+    assert b"<svg" in (quick_run / R / "figures/fig3.svg").read_bytes()[:2000]
     notebook = quick_run / R / "notebooks/table1_robust_kpca.ipynb"
     assert notebook.is_file() and "Table 1" in notebook.read_text()
+    for executed in (quick_run / R / "notebooks").glob("*.ipynb"):  # relative paths only
+        text = executed.read_text()
+        assert str(quick_run) not in text and str(REPO) not in text, executed.name
     assert not list((quick_run / "results").rglob(".*.tmp")) and not list(
         (quick_run / "results").rglob(".*.ipynb")
     )
@@ -190,13 +198,47 @@ def test_scorecard_counts_match_the_tables(quick_run):
     assert f"{inside} of {len(banded)} banded cells inside their band" in overview
 
 
+def report_entries(html: str) -> dict:
+    """The results embedded in Snakemake's HTML report: path -> (mime type, decoded bytes)."""
+    block = re.search(r"var results = (\{.*?\});\s*\n", html)
+    assert block, "no results block in the report"
+    entries = {}
+    for path, entry in json.loads(block.group(1)).items():
+        _, data = entry["data_uri"].split(",", 1)
+        entries[path] = (entry["mime_type"], base64.b64decode(data))
+    return entries
+
+
 @pytest.mark.pipeline
-def test_html_report_has_every_table_and_figure(quick_run):
+def test_html_report_shows_every_table_figure_and_notebook_inline(quick_run):
+    """Snakemake's report shows html/png inline and offers other types as downloads: every table, the
+    scorecard and every executed notebook must be in it as HTML, every figure as PNG."""
     proc = run_snakemake(quick_run, "--report", f"{R}/report.html", "--configfile", str(QUICK))
     assert proc.returncode == 0, proc.stderr[-3000:]
-    html = (quick_run / R / "report.html").read_text(errors="replace")
-    for name in ("table1.md", "table2.md", "table3.md", "table4.md", "fig1.png", "fig3.png", "report.md"):
-        assert name in html, name
+    entries = report_entries((quick_run / R / "report.html").read_text(errors="replace"))
+    paper = [e for e in EXPERIMENTS.values() if e.in_paper]
+    for e in paper:
+        mime, body = entries[f"{R}/tables/{e.name}.html"]
+        page = body.decode()
+        assert mime == "text/html" and page.count("<table") == 1 and "<td>" in page, e.name
+        # the same cells as the CSV: every published number of ours is in the page, as the Markdown shows it
+        md = (quick_run / R / f"tables/{e.name}.md").read_text()
+        cells = {c.strip() for line in md.splitlines()[4:] if line.startswith("| ") for c in line.split("|")}
+        assert all(f"<td>{c}</td>" in page for c in cells if c and c != "setting"), e.name
+        if e.notebook:
+            mime, body = entries[f"{R}/notebooks/{e.notebook}.html"]
+            assert mime == "text/html" and b"jp-Notebook" in body and b"Traceback" not in body
+    for figure in [f for e in paper for f in e.figures]:
+        assert entries[f"{R}/figures/{figure}.png"][0] == "image/png"
+    mime, body = entries[f"{R}/scorecard.html"]
+    page = body.decode()
+    assert mime == "text/html" and "banded cells inside their band" in page
+    # every "why" link points inside the page (the notes are embedded), none into the checkout
+    targets = set(re.findall(r'href="([^"]*)"', page))
+    assert targets and all(t.startswith(("#", "http")) for t in targets), sorted(targets)[:5]
+    anchors = set(re.findall(r'id="([^"]+)"', page))
+    assert {t[1:] for t in targets if t.startswith("#")} <= anchors
+    assert "../docs" not in page and f"{R}/notebooks/00_overview.html" in entries
 
 
 @pytest.mark.pipeline
@@ -215,6 +257,7 @@ def test_every_job_is_planned_with_each_profile(tmp_path, profile):
         "gather_table": 4,
         "draw_figure": 2,
         "notebook": 4,
+        "notebook_html": 5,  # the four tables' notebooks and the overview
         "scorecard": 1,
         "all": 1,
     }

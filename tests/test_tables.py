@@ -47,3 +47,27 @@ def test_paper_tables_have_every_published_cell():
     assert len(paper.TABLE1) == 12
     assert len(paper.TABLE2) == 6 * 4 * 2
     assert len(paper.TABLE3) == len(paper.TABLE4) == 5 * 6
+
+
+def test_html_table_is_a_page_with_the_same_cells_as_markdown():
+    t = pd.DataFrame(
+        [
+            ("p=0.1", "Ours", "sse", 6.04, 6.0),
+            ("p=0.1", "Ours", "sse_sd", 3.1, 3.0),
+            ("p=0.5", "1-NN", "sse", np.nan, np.nan),
+        ],
+        columns=tables.TABLE_COLUMNS,
+    )
+    page = tables.to_html(t, title="Table <2>", transpose=True)
+    assert page.startswith("<!DOCTYPE html>") and "<style>" in page
+    assert "<caption>Table &lt;2&gt;</caption>" in page  # the title, escaped
+    assert "<th>method</th>" in page and "<th>p=0.1</th>" in page and "<th>p=0.5</th>" in page
+    assert "<td>6.04 ± 3.1 (6 ± 3)</td>" in page
+    # every cell of the Markdown rendering is a cell of the HTML one
+    md_cells = {
+        c.strip()
+        for line in tables.to_markdown(t, transpose=True).splitlines()[2:]
+        if line.startswith("| ")
+        for c in line.strip("|").split("|")
+    }
+    assert all(f"<td>{c}</td>" in page for c in md_cells if c)

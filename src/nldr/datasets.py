@@ -1,10 +1,13 @@
 """Data sets of the paper: three-phase oil flow and the CMU mocap NRSfM sequences.
 
-Every file is pinned by URL (a fixed commit of a public repository) and sha256. A file is looked up,
-in order, in the data directory (``data_dir`` argument, else ``$NLDR_DATA_DIR``, else ``./resources``);
-when missing there it is copied from the local mirror folder ``$NLDR_DATA_MIRROR`` (same layout as
-the data directory, e.g. ``$NLDR_DATA_MIRROR/oil/DataTrn.txt``) or, without a mirror, downloaded.
-It is written to a temporary name and renamed only after its sha256 matched, so a partial or wrong
+Every file is pinned by URL (a fixed commit of a public repository) and sha256: :data:`FILES` is the
+registry, :func:`registry` gives it in pooch's form. A file is looked up, in order, in the data
+directory (``data_dir`` argument, else ``$NLDR_DATA_DIR``, else the user's cache folder of the
+operating system, ``pooch.os_cache("nldr")``, e.g. ``~/.cache/nldr`` on Linux; the pipeline passes
+its config's ``data.dir``, ``resources/``); when missing there it is copied from the local mirror
+folder ``$NLDR_DATA_MIRROR`` (same layout as the data directory, e.g.
+``$NLDR_DATA_MIRROR/oil/DataTrn.txt``) or, without a mirror, downloaded by pooch (with retries). A
+file is written to a temporary name and renamed only after its sha256 matched, so a partial or wrong
 file is never left behind. Loading verifies the hash again and checks shapes.
 
 This is the one module of the library that touches files: it is the edge where data enter.
@@ -16,7 +19,6 @@ import hashlib
 import os
 import shutil
 import tempfile
-import urllib.request
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,6 +31,8 @@ __all__ = [
     "OIL_SPLITS",
     "MOCAP_SEQUENCES",
     "default_data_dir",
+    "registry",
+    "DOWNLOAD_RETRIES",
     "fetch",
     "verify",
     "verify_present",
@@ -91,8 +95,41 @@ _MIRROR_HINT = (
 
 
 def default_data_dir() -> Path:
-    """``$NLDR_DATA_DIR`` if set, else ``./resources``."""
-    return Path(os.environ.get("NLDR_DATA_DIR", "resources"))
+    """``$NLDR_DATA_DIR`` if set, else the operating system's cache folder for nldr
+    (``pooch.os_cache("nldr")``: ``~/.cache/nldr`` on Linux, ``~/Library/Caches/nldr`` on macOS)."""
+    if os.environ.get("NLDR_DATA_DIR"):
+        return Path(os.environ["NLDR_DATA_DIR"])
+    import pooch
+
+    return Path(pooch.os_cache("nldr"))
+
+
+def registry() -> dict[str, str]:
+    """:data:`FILES` as a pooch registry: relative path -> ``"sha256:<hex>"``."""
+    return {rel: f"sha256:{spec.sha256}" for rel, spec in FILES.items()}
+
+
+#: Download attempts after the first failed one (pooch's ``retry_if_failed``).
+DOWNLOAD_RETRIES = 2
+
+
+def _download(spec: DataFile, data_dir: Path) -> None:
+    """Download ``spec`` into ``data_dir/spec.relpath`` with pooch: the hash checked before the file
+    takes its name, retries on a failed attempt; DataError naming the file and the fix otherwise."""
+    import pooch
+    import requests
+
+    store = pooch.create(
+        path=data_dir,
+        base_url="",
+        registry={spec.relpath: f"sha256:{spec.sha256}"},
+        urls={spec.relpath: spec.url},
+        retry_if_failed=DOWNLOAD_RETRIES,
+    )
+    try:
+        store.fetch(spec.relpath, downloader=pooch.HTTPDownloader(timeout=60, progressbar=False))
+    except (OSError, requests.RequestException, ValueError) as exc:  # ValueError: pooch's hash check
+        raise DataError(f"{spec.relpath}: download from {spec.url} failed ({exc}). {_MIRROR_HINT}") from None
 
 
 def _sha256(path: Path) -> str:
@@ -174,7 +211,8 @@ def fetch(relpath: str, data_dir=None, *, mirror=None) -> Path:
     data_dir : path, optional
         Destination directory (default :func:`default_data_dir`).
     mirror : path, optional
-        Local mirror folder; defaults to ``$NLDR_DATA_MIRROR``. When set, nothing is downloaded.
+        Local mirror folder; defaults to ``$NLDR_DATA_MIRROR``. When set, nothing is downloaded;
+        otherwise pooch downloads the file from its pinned URL (:data:`DOWNLOAD_RETRIES` retries).
 
     Raises
     ------
@@ -182,37 +220,32 @@ def fetch(relpath: str, data_dir=None, *, mirror=None) -> Path:
         When the file cannot be obtained or its sha256 differs from the pinned one.
     """
     spec = _spec(relpath)
-    dest = Path(default_data_dir() if data_dir is None else data_dir) / spec.relpath
+    root = Path(default_data_dir() if data_dir is None else data_dir)
+    dest = root / spec.relpath
     if dest.is_file():
         return verify(dest, relpath)
     mirror = os.environ.get("NLDR_DATA_MIRROR") if mirror is None else mirror
+    if not mirror:
+        _download(spec, root)
+        return verify(dest, relpath, source=spec.url)
     dest.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.name}.", suffix=".part")
     tmp = Path(tmp_name)
-    source = Path(mirror) / spec.relpath if mirror else spec.url
+    source = Path(mirror) / spec.relpath
     try:
         with os.fdopen(fd, "wb") as out:
-            if mirror:
-                if not source.is_file():
-                    raise DataError(
-                        f"{relpath}: not found in the mirror NLDR_DATA_MIRROR={mirror} (looked for "
-                        f"{source}). Put the file there (sha256 {spec.sha256}, source {spec.url})."
-                    )
-                try:
-                    with open(source, "rb") as src:
-                        shutil.copyfileobj(src, out)
-                except OSError as exc:
-                    raise DataError(
-                        f"{relpath}: cannot read the mirror file {source} ({exc.strerror or exc})."
-                    ) from None
-            else:
-                try:
-                    with urllib.request.urlopen(spec.url, timeout=60) as response:
-                        shutil.copyfileobj(response, out)
-                except OSError as exc:
-                    raise DataError(
-                        f"{relpath}: download from {spec.url} failed ({exc}). {_MIRROR_HINT}"
-                    ) from None
+            if not source.is_file():
+                raise DataError(
+                    f"{relpath}: not found in the mirror NLDR_DATA_MIRROR={mirror} (looked for "
+                    f"{source}). Put the file there (sha256 {spec.sha256}, source {spec.url})."
+                )
+            try:
+                with open(source, "rb") as src:
+                    shutil.copyfileobj(src, out)
+            except OSError as exc:
+                raise DataError(
+                    f"{relpath}: cannot read the mirror file {source} ({exc.strerror or exc})."
+                ) from None
         verify(tmp, relpath, source=source)
         os.chmod(tmp, 0o644)  # mkstemp creates 0600
         os.replace(tmp, dest)

@@ -7,11 +7,12 @@ per setting and one column per (method, metric), each cell showing ours and the 
 
 from __future__ import annotations
 
+import html
 import math
 
 import pandas as pd
 
-__all__ = ["TABLE_COLUMNS", "attach_paper", "to_csv", "to_markdown", "to_latex"]
+__all__ = ["TABLE_COLUMNS", "STYLE", "attach_paper", "to_csv", "to_markdown", "to_html", "to_latex"]
 
 TABLE_COLUMNS = ["setting", "method", "metric", "value", "paper"]
 
@@ -95,6 +96,45 @@ def to_markdown(
     lines.append("")
     lines.append("Cells: ours (paper).")
     return "\n".join(lines) + "\n"
+
+
+# A small stylesheet for the HTML renderings (tables, scorecard): readable in a browser and inside
+# Snakemake's report, which shows .html outputs inline.
+STYLE = """
+body { font-family: system-ui, -apple-system, "Segoe UI", Roboto, sans-serif; font-size: 14px;
+       color: #1f2328; margin: 1em; line-height: 1.45; }
+table { border-collapse: collapse; margin: 0.6em 0 1.2em 0; }
+th, td { border: 1px solid #d0d7de; padding: 0.3em 0.65em; text-align: right; white-space: nowrap; }
+th { background: #f3f4f6; }
+td:first-child, th:first-child { text-align: left; }
+tbody tr:nth-child(even) { background: #fafbfc; }
+caption { caption-side: top; text-align: left; max-width: 60em; padding-bottom: 0.5em; }
+.note { color: #57606a; }
+"""
+
+
+def html_page(title: str, body: str) -> str:
+    """A standalone HTML document: ``body`` (HTML) under ``title`` with the :data:`STYLE` sheet."""
+    return (
+        '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
+        f"<title>{html.escape(title)}</title>\n"
+        f"<style>{STYLE}</style>\n</head>\n<body>\n{body}\n</body>\n</html>\n"
+    )
+
+
+def to_html(
+    table: pd.DataFrame, *, title: str = "", digits: int = 4, metrics=None, transpose: bool = False
+) -> str:
+    """A standalone HTML page of the table (cells 'ours ± sd (paper)', the same grid as
+    :func:`to_markdown`), for browsers and Snakemake's report."""
+    wide = _wide(table, digits, metrics, transpose)
+    flat = wide.reset_index().rename_axis(columns=None)  # the row labels as the first column
+    grid = flat.to_html(escape=True, border=0, index=False, na_rep="–")
+    if title:
+        opening = grid.index(">", grid.index("<table")) + 1
+        grid = grid[:opening] + f"<caption>{html.escape(title)}</caption>" + grid[opening:]
+    body = grid + '\n<p class="note">Cells: ours (paper).</p>'
+    return html_page(title or "table", body)
 
 
 def _tex_escape(s: str) -> str:

@@ -43,23 +43,34 @@ def run_files(experiment, ext="csv"):
     return [f"{RESULTS}/runs/{e.name}/{job_id}.{ext}" for job_id in JOBS[e.name]]
 
 
+TABLE_FORMATS = ("csv", "md", "html", "tex")  # CSV is canonical; HTML is what the HTML report shows
+FIGURE_FORMATS = ("png", "pdf", "svg")  # PNG for the report and notebooks, PDF and SVG for papers
+
+
 def table_files(experiment):
-    """CSV (canonical), Markdown (in the HTML report), LaTeX."""
+    """CSV (canonical), Markdown, HTML (in the HTML report), LaTeX."""
     name = experiment if isinstance(experiment, str) else experiment.name
-    return [f"{RESULTS}/tables/{name}.{ext}" for ext in ("csv", "md", "tex")]
+    return [f"{RESULTS}/tables/{name}.{ext}" for ext in TABLE_FORMATS]
 
 
-def figure_path(figure):
-    return f"{RESULTS}/figures/{figure}.png"
+def figure_path(figure, ext="png"):
+    return f"{RESULTS}/figures/{figure}.{ext}"
 
 
-def notebook_path(experiment):
-    return f"{RESULTS}/notebooks/{experiment.notebook}.ipynb"
+def figure_files(figure):
+    return [figure_path(figure, ext) for ext in FIGURE_FORMATS]
+
+
+def notebook_path(experiment, ext="ipynb"):
+    """The executed notebook (``ipynb``) or its HTML page (``html``) of an experiment or a notebook name."""
+    name = experiment if isinstance(experiment, str) else experiment.notebook
+    return f"{RESULTS}/notebooks/{name}.{ext}"
 
 
 def target_of(experiment):
-    """What `snakemake <name>` builds: the executed notebook if the experiment has one (which needs
-    the table and figures), else the table and figures."""
+    """What `snakemake <name>` builds: the table in every format, the figures in every format, and the
+    executed notebook with its HTML page if the experiment has one."""
+    files = table_files(experiment) + [f for fig in experiment.figures for f in figure_files(fig)]
     if experiment.notebook:
-        return notebook_path(experiment)
-    return table_files(experiment) + [figure_path(f) for f in experiment.figures]
+        files += [notebook_path(experiment), notebook_path(experiment, "html")]
+    return files

@@ -36,7 +36,13 @@ rule gather_table:
         others=lambda w: [f for other in experiment_of(w).gathers_with for f in run_files(other)],
     output:
         csv=f"{RESULTS}/tables/{{experiment}}.csv",
-        md=report(f"{RESULTS}/tables/{{experiment}}.md", caption="../report/caption.rst", category="Tables"),
+        md=f"{RESULTS}/tables/{{experiment}}.md",
+        html=report(
+            f"{RESULTS}/tables/{{experiment}}.html",
+            caption="../report/caption.rst",
+            category="Tables",
+            labels={"table": "{experiment}"},
+        ),
         tex=f"{RESULTS}/tables/{{experiment}}.tex",
     params:
         caption=lambda w: experiment_of(w).caption(config),
@@ -57,7 +63,14 @@ rule draw_figure:
         arrays=lambda w: run_files(figure_owner(w.figure), "npz"),
         data=lambda w: data_paths(figure_owner(w.figure).data_files(config)),
     output:
-        report(f"{RESULTS}/figures/{{figure}}.png", caption="../report/caption.rst", category="Figures"),
+        png=report(
+            f"{RESULTS}/figures/{{figure}}.png",
+            caption="../report/caption.rst",
+            category="Figures",
+            labels={"figure": "{figure}"},
+        ),
+        pdf=f"{RESULTS}/figures/{{figure}}.pdf",
+        svg=f"{RESULTS}/figures/{{figure}}.svg",
     params:
         caption=lambda w: figure_owner(w.figure).figure_captions.get(w.figure, ""),
         data_dir=DATA_DIR,
@@ -86,8 +99,9 @@ rule notebook:
     params:
         parameters=lambda w: {
             "settings": NOTEBOOKS[w.notebook].settings(config),
-            "data_dir": str(Path(DATA_DIR).resolve()),
+            "data_dir": DATA_DIR,  # relative to the working directory, where the kernel runs
         },
+        results=lambda w, output: str(Path(output[0]).parents[1]),  # <results>/notebooks/<name>.ipynb
     wildcard_constraints:
         notebook="|".join(NOTEBOOKS),
     conda:
@@ -116,5 +130,5 @@ for _figure in [f for e in EXPERIMENTS.values() for f in e.figures]:
         name:
             _figure
         input:
-            figure_path(_figure),
+            figure_files(_figure),
         localrule: True

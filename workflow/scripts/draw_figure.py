@@ -1,10 +1,12 @@
-"""Draw one figure from its experiment's runs (nldr.experiments -> nldr.plotting), PNG, atomically."""
+"""Draw one figure from its experiment's runs (nldr.experiments -> nldr.plotting) as PNG (the report,
+notebooks), PDF and SVG (vector, for papers and slides), each written atomically."""
 
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
+matplotlib.rcParams.update({"pdf.fonttype": 42, "svg.fonttype": "none"})  # text stays text (editable)
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from _pipeline import atomic_path, setup  # noqa: E402
@@ -17,6 +19,9 @@ figure = sm.wildcards.figure
 runs = pd.concat([pd.read_csv(path) for path in sm.input.runs], ignore_index=True)
 arrays = {Path(path).stem: np.load(path) for path in sm.input.arrays}
 fig = figure_owner(figure).draw(figure, runs, arrays, sm.params.data_dir)
-with atomic_path(sm.output[0]) as tmp:
-    fig.savefig(tmp, dpi=130, format="png")
-log.info("wrote %s", sm.output[0])
+for fmt in ("png", "pdf", "svg"):
+    with atomic_path(sm.output[fmt]) as tmp:
+        # no creation date in the vector files: the same runs give the same bytes
+        stamp = {"pdf": {"CreationDate": None}, "svg": {"Date": None}}.get(fmt)
+        fig.savefig(tmp, dpi=200, format=fmt, metadata=stamp)
+    log.info("wrote %s", sm.output[fmt])

@@ -1,4 +1,4 @@
-"""Gather an experiment's runs into results/tables/<name>.{csv,md,tex}, the paper's numbers beside."""
+"""Gather an experiment's runs into results/tables/<name>.{csv,md,html,tex}, the paper's numbers beside."""
 
 from pathlib import Path
 
@@ -24,5 +24,6 @@ table = experiment.table(concat(sm.input.runs), sm.config, {k: concat(v) for k, 
 caption, render = sm.params.caption, experiment.render
 write_text(sm.output.csv, tables.to_csv(table))
 write_text(sm.output.md, tables.to_markdown(table, title=caption, **render))
+write_text(sm.output.html, tables.to_html(table, title=caption, **render))
 write_text(sm.output.tex, tables.to_latex(table, caption=caption, label=experiment.label, **render))
 log.info("\n%s", tables.to_markdown(table, **render))

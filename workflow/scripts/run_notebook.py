@@ -1,31 +1,34 @@
 """Execute a jupytext percent notebook with papermill into results/notebooks/ (atomic write).
 
-The notebook's ``parameters`` cell is overridden with the rule's named inputs (absolute paths) and
-with the rule's ``parameters`` param (the experiment's settings, the data folder), so the executed copy
-shows exactly the files and settings of this run.
+The notebook's ``parameters`` cell is overridden with the rule's named inputs and with the rule's
+``parameters`` param (the experiment's settings, the data folder), so the executed copy shows exactly
+the files and settings of this run. Paths stay relative to Snakemake's working directory (the kernel
+runs there, ``workdir="."``), so the executed copy names no absolute path of this machine.
 """
 
 import os
 from pathlib import Path
 
 import jupytext
+import nbformat
 import papermill
 from _pipeline import atomic_path, setup
 
 sm = snakemake  # noqa: F821
 log = setup(sm)
 parameters = {
-    key: (str(Path(value).resolve()) if isinstance(value, str) else [str(Path(v).resolve()) for v in value])
+    key: (str(value) if isinstance(value, str) else [str(v) for v in value])
     for key, value in sm.input.items()
     if key not in ("notebook", "data")
 }
+parameters.update(workdir=".", results=sm.params.results)
 parameters.update(dict(getattr(sm.params, "parameters", None) or {}))
 notebook = jupytext.read(sm.input.notebook)
 # A non-interactive MPLBACKEND (CI sets Agg) would stop the kernel from showing figures inline.
 os.environ.pop("MPLBACKEND", None)
 log.info("executing %s with %s", sm.input.notebook, sorted(parameters))
 with atomic_path(sm.output[0]) as tmp:
-    papermill.execute_notebook(
+    executed = papermill.execute_notebook(
         notebook,
         str(tmp),
         parameters=parameters,
@@ -33,4 +36,9 @@ with atomic_path(sm.output[0]) as tmp:
         cwd=str(Path.cwd()),
         progress_bar=False,
     )
+    # papermill records where it read and wrote: name the source and the final file, not temporaries
+    executed.metadata.papermill.update(input_path=sm.input.notebook, output_path=sm.output[0])
+    if Path(sm.input.notebook).is_absolute():  # the rules name the notebook under the repository
+        executed.metadata.papermill["input_path"] = f"notebooks/{Path(sm.input.notebook).name}"
+    nbformat.write(executed, str(tmp))
 log.info("wrote %s", sm.output[0])

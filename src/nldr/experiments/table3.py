@@ -337,8 +337,9 @@ class Table3(MocapExperiment):
             if seq not in chosen or (setting == "missing" and "_missing_" not in chosen[seq]):
                 chosen[seq] = job_id
         recons = {seq: Reconstructions.from_arrays(arrays[job_id]) for seq, job_id in chosen.items()}
-        bones = {seq: load_mocap(seq, data_dir).bones for seq in recons}
-        return figure1(recons, bones)
+        mocap = {seq: load_mocap(seq, data_dir) for seq in recons}
+        bones, total = {s: m.bones for s, m in mocap.items()}, {s: m.n_frames for s, m in mocap.items()}
+        return figure1(recons, bones, total_frames=total)
 
 
 class Table3Full(Table3):

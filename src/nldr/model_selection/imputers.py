@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
-from .._cv import run_jobs, summarise_folds
+from .._cv import run_jobs, say, summarise_folds
 from .._validation import check_count
 from ..baselines import peers, pkpca_impute, ppca_impute, rkpca_impute
 from ..baselines._masked import check_masked_matrix, mean_fill
@@ -50,7 +50,7 @@ def _completed(output) -> np.ndarray:
     return np.asarray(getattr(output, "x", output), dtype=np.float64)
 
 
-def _imputer_fold(impute, W, train, hidden, candidates, score="squared"):
+def _imputer_fold(impute, W, train, hidden, candidates, score="squared", verbose=False, fold=""):
     with threadpool_limits(1):
         rows = []
         W_train = np.where(train, W, np.nan)
@@ -60,6 +60,7 @@ def _imputer_fold(impute, W, train, hidden, candidates, score="squared"):
             seconds = time.perf_counter() - start
             error = fold_score(X_hat, W, hidden, score)
             rows.append({"candidate": k, "test_error": error, "fit_time": seconds})
+            say(verbose, "select_imputer", f"{fold}{params}: hold-out error {error:.5g} ({seconds:.2f} s)")
         return rows
 
 
@@ -73,6 +74,7 @@ def select_imputer(
     random_state=0,
     n_jobs: int = 1,
     score: str = "squared",
+    verbose: bool = False,
 ) -> ImputerSelection:
     """Choose the keyword arguments of an imputation method by hold-out cross-validation.
 
@@ -92,6 +94,9 @@ def select_imputer(
     score : {"squared", "absolute"}, default "squared"
         Fold score per hidden entry: squared error, or absolute error (robust to gross outliers among
         the observed entries; :data:`nldr.model_selection.folds.SCORES`). ``cv_results_`` holds it.
+    verbose : bool, default=False
+        Print progress to stdout: a line per candidate fit (its fold, parameters, hold-out error and
+        seconds; from the worker processes when ``n_jobs > 1``), a line per finished fold, the choice.
 
     Returns
     -------
@@ -108,12 +113,22 @@ def select_imputer(
         raise ValueError("param_grid must give at least one value per parameter")
     candidates = [dict(zip(names, combo, strict=True)) for combo in product(*values)]
     folds = holdout_folds(mask, n_folds, random_state)
-    jobs = [(_imputer_fold, (impute, W, mask & ~hidden, hidden, candidates, score)) for hidden in folds]
-    rows = [row for fold in run_jobs(jobs, n_jobs) for row in fold]
+    name = getattr(impute, "__name__", type(impute).__name__)
+    say(verbose, "select_imputer", f"{name}: {len(candidates)} candidates, {len(folds)} folds")
+    jobs = [
+        (_imputer_fold, (impute, W, mask & ~h, h, candidates, score, verbose, f"fold {i + 1}/{len(folds)} "))
+        for i, h in enumerate(folds)
+    ]
+
+    def done(finished, total, seconds):
+        say(verbose, "select_imputer", f"folds done: {finished}/{total} ({seconds:.1f} s)")
+
+    rows = [row for fold in run_jobs(jobs, n_jobs, done) for row in fold]
     summary = summarise_folds(rows, ["candidate"])
     params = pd.DataFrame(candidates, columns=names) if names else pd.DataFrame(index=range(1))
     cv_results = pd.concat([params, summary.drop(columns="candidate")], axis=1)
     best = int(np.argmin(cv_results["mean_test_error"].to_numpy()))
+    say(verbose, "select_imputer", f"chose {candidates[best]}; refitting on every observed entry")
     with threadpool_limits(1):
         result = impute(np.where(mask, W, np.nan), mask, **candidates[best])
     return ImputerSelection(candidates[best], cv_results, result, folds)

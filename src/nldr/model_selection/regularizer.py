@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
-from .._cv import positive_grid, run_jobs, summarise_folds
+from .._cv import positive_grid, run_jobs, say, summarise_folds
 from .._validation import check_count, check_positive
 from ..baselines import mean_impute
 from ..baselines._masked import check_masked_matrix, mean_fill
@@ -62,7 +62,8 @@ class RegularizerSelection:
 
 
 def _regularizer_path(
-    W, train, hidden, S0, gammas, taus, center, warm_start, warm_gamma, stop, options, score="squared"
+    W, train, hidden, S0, gammas, taus, center, warm_start, warm_gamma, stop, options, score="squared",
+    verbose=False, fold=""
 ):
     """Solve one fold along ``taus`` (smallest first) for each of ``gammas`` (in the given order).
 
@@ -105,6 +106,12 @@ def _regularizer_path(
                     }
                 )
                 lowest = min(lowest, rows[-1]["test_error"])
+                say(
+                    verbose,
+                    "select_regularizer",
+                    f"{fold}gamma={gamma:.4g} tau={tau:.4g}: hold-out error {rows[-1]['test_error']:.5g} "
+                    f"({rows[-1]['fit_time']:.2f} s{', warm' if warm else ''})",
+                )
         return rows
 
 
@@ -139,6 +146,7 @@ def select_regularizer(
     fold_gtol: float = 1e-4,
     n_jobs: int = 1,
     score: str = "squared",
+    verbose: bool = False,
     **solver_options,
 ) -> RegularizerSelection:
     """Choose tau and the kernel width of the regularizer by hold-out cross-validation.
@@ -187,9 +195,8 @@ def select_regularizer(
     n_jobs : int >= 1, default=1
         Processes over the folds (over the (fold, gamma) pairs if ``warm_gamma`` is False); each
         solve runs on one BLAS thread.
-    score : {"squared", "absolute"}, default "squared"
-        Fold score per hidden entry: squared error, or absolute error (robust to gross outliers among
-        the observed entries; :data:`nldr.model_selection.folds.SCORES`).
+    W, train, hidden, S0, gammas, taus, center, warm_start, warm_gamma, stop, options, score="squared",
+    verbose=False, fold=""
     **solver_options
         Passed to :func:`~nldr.regularizer.minimize_regularized` (``rho0, rho_growth, rho_max,
         max_inner, tol, gtol, eigensolver``); ``isolation_guard`` is always on.
@@ -228,13 +235,18 @@ def select_regularizer(
     }
     folds = holdout_folds(mask, n_folds, random_state, holdout=holdout)
     jobs = []
-    for hidden in folds:
+    for i, hidden in enumerate(folds):
         train = mask & ~hidden
         S0 = mean_fill(np.where(train, W, 0.0), train)
         for group in [gammas] if warm_gamma else [[g] for g in gammas]:
             path = (W, train, hidden, S0, group, taus, bool(center), warm_start, warm_gamma, stop)
-            jobs.append((_regularizer_path, (*path, fold_options, score)))
-    rows = [row for path in run_jobs(jobs, n_jobs) for row in path]
+            jobs.append((_regularizer_path, (*path, fold_options, score, verbose, f"fold {i + 1}/{len(folds)} ")))
+    say(verbose, "select_regularizer", f"{len(gammas)} gammas x {len(taus)} taus, {len(folds)} folds")
+
+    def done(finished, total, seconds):
+        say(verbose, "select_regularizer", f"fold jobs done: {finished}/{total} ({seconds:.1f} s)")
+
+    rows = [row for path in run_jobs(jobs, n_jobs, done) for row in path]
     grid = pd.MultiIndex.from_product([[float(g) for g in gammas], [float(t) for t in taus]])
     solved = pd.DataFrame(rows).groupby(["gamma", "tau"]).size().reindex(grid, fill_value=0).to_numpy()
     summary = summarise_folds(rows, ["gamma", "tau"]).set_index(["gamma", "tau"]).reindex(grid)
@@ -244,6 +256,7 @@ def select_regularizer(
     cv_results.loc[solved < len(folds), ["mean_test_error", "std_test_error"]] = np.nan  # path stopped
     best = _choose(cv_results, rule, len(folds))
     tau, gamma = float(cv_results["tau"].iloc[best]), float(cv_results["gamma"].iloc[best])
+    say(verbose, "select_regularizer", f"chose tau={tau:.4g}, gamma={gamma:.4g} ({rule}); refitting")
     with threadpool_limits(1):
         result = minimize_regularized(
             MaskedLeastSquares(W, mask),
@@ -254,4 +267,5 @@ def select_regularizer(
             isolation_guard=True,
             **solver_options,
         )
+    say(verbose, "select_regularizer", f"refit: {result.message}")
     return RegularizerSelection(tau, gamma, cv_results, result, folds)

@@ -1,0 +1,121 @@
+"""What the notebooks in ``notebooks/`` share: the repository, the config as the pipeline reads it, and
+a cache for what a notebook computes itself.
+
+A notebook reads the pipeline's results (``snakemake <experiment>`` computes them); run by the pipeline
+it is given this run's files as relative paths, run by hand it finds them from the config. Either way
+it works from any working directory and its executed copy names no absolute path.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import os
+import pickle
+import tempfile
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+__all__ = ["repo_root", "load_config", "merge_config", "need", "cached"]
+
+_MARKERS = ("Snakefile", "config/config.yaml")
+
+
+def _is_root(folder: Path) -> bool:
+    return all((folder / marker).is_file() for marker in _MARKERS)
+
+
+def repo_root(start: str | os.PathLike | None = None) -> Path:
+    """The repository: the first folder holding ``Snakefile`` and ``config/config.yaml``, walking up
+    from ``start`` (default: the working directory), else the checkout this package was imported from
+    (an editable install or ``PYTHONPATH=src``).
+
+    Raises
+    ------
+    FileNotFoundError
+        Neither walk finds one (``nldr`` installed from a wheel and run outside a checkout); the
+        message says to pass ``start``.
+    """
+    begin = Path(start if start is not None else Path.cwd()).resolve()
+    for folder in (begin, *begin.parents):
+        if _is_root(folder):
+            return folder
+    source = Path(__file__).resolve().parents[3]  # <checkout>/src/nldr/experiments/notebook.py
+    if _is_root(source):
+        return source
+    raise FileNotFoundError(
+        f"no folder holding {' and '.join(_MARKERS)} above {begin} or {source}: "
+        "pass start= (the repository's folder) or run from inside a checkout"
+    )
+
+
+def merge_config(base: Mapping, overlay: Mapping) -> dict:
+    """``overlay`` laid over ``base`` as Snakemake merges ``--configfile`` files: nested mappings merge
+    key by key, any other value replaces."""
+    out = copy.deepcopy(dict(base))
+    for key, value in overlay.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = merge_config(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+def load_config(root: str | os.PathLike, configfile: str | os.PathLike = "") -> dict:
+    """``config/config.yaml`` of ``root`` with ``configfile`` (e.g. ``"config/quick.yaml"``, relative
+    to ``root`` or absolute) laid over it, as ``snakemake --configfile <configfile>`` sees it."""
+    import yaml
+
+    root = Path(root)
+    config = yaml.safe_load((root / "config" / "config.yaml").read_text())
+    if configfile:
+        path = Path(configfile) if Path(configfile).is_absolute() else root / configfile
+        if not path.is_file():
+            raise ValueError(f"configfile {str(configfile)!r} not found (relative paths are from {root})")
+        config = merge_config(config, yaml.safe_load(path.read_text()) or {})
+    return config
+
+
+def need(path: str | os.PathLike, target: str) -> Path:
+    """``path`` if it is a file; else FileNotFoundError saying which Snakemake target builds it."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"{path} not found: build it with `snakemake -c all {target}` (for the quick protocol's "
+            f"results, `snakemake -c all {target} --configfile config/quick.yaml` and configfile = "
+            '"config/quick.yaml" in the parameters cell)'
+        )
+    return path
+
+
+def cached(
+    folder: str | os.PathLike,
+    name: str,
+    key: Mapping,
+    compute: Callable[[], object],
+    *,
+    recompute: bool = False,
+):
+    """``compute()``'s value, kept in ``folder/<name>-<hash of key>.pkl``.
+
+    The file is read when it exists and ``recompute`` is false; otherwise ``compute()`` runs and its
+    value is written (atomically: complete or absent). ``key`` holds everything the value depends on
+    (JSON-serialisable settings), so changing a setting computes afresh instead of reading a stale
+    value. Read only caches you wrote: unpickling runs code.
+    """
+    digest = hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:12]
+    path = Path(folder) / f"{name}-{digest}.pkl"
+    if path.is_file() and not recompute:
+        with open(path, "rb") as fh:
+            return pickle.load(fh)
+    value = compute()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            pickle.dump(value, fh)
+        os.replace(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+    return value
