@@ -26,6 +26,8 @@ _REGISTRY = {
     "table3_full": ("table3", "Table3Full"),
     "selection": ("selection", "Selection"),
     "selection_nrsfm": ("selection_nrsfm", "SelectionNRSfM"),
+    "out_of_sample": ("out_of_sample", "OutOfSample"),
+    "denoising": ("denoising", "Denoising"),
 }
 _INSTANCES: dict[str, Experiment] = {}
 
