@@ -104,7 +104,11 @@ def subspace_distance(space: Subspace, X: np.ndarray, A: np.ndarray | None = Non
         kxx = np.ones(X.shape[0])
         B = Kx @ V
     Cc = B if A is None else A
-    r = kxx - np.einsum("ij,ij->i", B, B) if A is None else kxx - 2 * np.einsum("ij,ij->i", A, B) + np.einsum("ij,ij->i", A, A)
+    r = (
+        kxx - np.einsum("ij,ij->i", B, B)
+        if A is None
+        else kxx - 2 * np.einsum("ij,ij->i", A, B) + np.einsum("ij,ij->i", A, A)
+    )
     G = -2.0 * (Cc @ V.T)
     if space.centred:
         G += 2.0 * (Cc @ V.mean(axis=0))[:, None] - 2.0 / n
@@ -113,7 +117,9 @@ def subspace_distance(space: Subspace, X: np.ndarray, A: np.ndarray | None = Non
     return r, grad
 
 
-def _lbfgs_rows(fun_grad, X0: np.ndarray, free: np.ndarray, max_iter: int, gtol: float) -> tuple[np.ndarray, int]:
+def _lbfgs_rows(
+    fun_grad, X0: np.ndarray, free: np.ndarray, max_iter: int, gtol: float
+) -> tuple[np.ndarray, int]:
     """Minimise a sum of row objectives over the ``free`` entries of X0, block by block.
 
     ``fun_grad(X, rows)`` returns per-row values (len(rows),) and gradients (len(rows), d) for the
@@ -133,8 +139,13 @@ def _lbfgs_rows(fun_grad, X0: np.ndarray, free: np.ndarray, max_iter: int, gtol:
             val, grad = fun_grad(Y, rows)
             return float(val.sum()), grad[Fb]
 
-        res = minimize(f, Xb[Fb], jac=True, method="L-BFGS-B",
-                       options={"maxiter": max_iter, "gtol": gtol, "ftol": 1e-15, "maxcor": 20})
+        res = minimize(
+            f,
+            Xb[Fb],
+            jac=True,
+            method="L-BFGS-B",
+            options={"maxiter": max_iter, "gtol": gtol, "ftol": 1e-15, "maxcor": 20},
+        )
         unconverged += int(res.nit >= max_iter)
         Xb = Xb.copy()
         Xb[Fb] = res.x
@@ -142,8 +153,9 @@ def _lbfgs_rows(fun_grad, X0: np.ndarray, free: np.ndarray, max_iter: int, gtol:
     return X, unconverged
 
 
-def neighbour_start(X_fit: np.ndarray, W: np.ndarray, mask: np.ndarray, n_neighbors: int = 5,
-                    each: bool = False) -> np.ndarray:
+def neighbour_start(
+    X_fit: np.ndarray, W: np.ndarray, mask: np.ndarray, n_neighbors: int = 5, each: bool = False
+) -> np.ndarray:
     """Starts for the missing entries from the nearest training rows on the observed entries.
 
     The distance is the mean squared difference over a row's observed entries. With ``each`` False,
@@ -182,8 +194,16 @@ def preimage(space: Subspace, A: np.ndarray, X0: np.ndarray, *, max_iter: int = 
     return _lbfgs_rows(lambda Y, rows: subspace_distance(space, Y, A[rows]), X0, free, max_iter, gtol)
 
 
-def complete_rows(space: Subspace, W: np.ndarray, mask: np.ndarray, X0: np.ndarray, *, rho: float | None,
-                  max_iter: int = 500, gtol: float = 1e-7):
+def complete_rows(
+    space: Subspace,
+    W: np.ndarray,
+    mask: np.ndarray,
+    X0: np.ndarray,
+    *,
+    rho: float | None,
+    max_iter: int = 500,
+    gtol: float = 1e-7,
+):
     """Minimise ``||m o (x - w)||^2 + rho r(x)`` per row (``rho=None``: r over the missing entries only).
 
     Parameters

@@ -290,7 +290,9 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         check_is_fitted(self)
         Z = np.asarray(Z, dtype=np.float64)
         if Z.ndim != 2 or Z.shape[1] != self.n_components_:
-            raise ValueError(f"Z must have shape (n_samples, {self.n_components_}) (n_components_); got {Z.shape}")
+            raise ValueError(
+                f"Z must have shape (n_samples, {self.n_components_}) (n_components_); got {Z.shape}"
+            )
         if not np.all(np.isfinite(Z)):
             raise ValueError("Z contains NaN or infinite values")
         T = self.eigenvectors_ * self.singular_values_[None, :]

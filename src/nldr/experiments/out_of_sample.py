@@ -110,7 +110,9 @@ class OutOfSample(Experiment):
     """New oil-flow rows completed against a manifold learned on the training rows."""
 
     name = "out_of_sample"
-    title = "New samples on a learned manifold: oil-flow test rows completed after fitting on the training rows"
+    title = (
+        "New samples on a learned manifold: oil-flow test rows completed after fitting on the training rows"
+    )
     in_paper = False
     notebook = "out_of_sample"
     render = {"digits": 3, "metrics": ["sse", "sse_subset", "ms_per_row"], "transpose": True}
@@ -144,18 +146,27 @@ class OutOfSample(Experiment):
         def record(method, X_hat, seconds, n_rows, params):
             err = (X_hat - X_test[: X_hat.shape[0]]) ** 2
             full = X_hat.shape[0] == X_test.shape[0]
-            rows.append({
-                "p": p, "seed": seed, "method": method,
-                "sse": float(err.sum()) if full else np.nan,
-                "sse_subset": float(err[:n_sub].sum()),
-                "ms_per_row": 1000.0 * seconds / n_rows,
-                "params": repr(params),
-            })
-            say(f"p={p} seed={seed} {method:16s} sse={rows[-1]['sse']:9.3f} {rows[-1]['ms_per_row']:.2f} ms/row {params}")
+            rows.append(
+                {
+                    "p": p,
+                    "seed": seed,
+                    "method": method,
+                    "sse": float(err.sum()) if full else np.nan,
+                    "sse_subset": float(err[:n_sub].sum()),
+                    "ms_per_row": 1000.0 * seconds / n_rows,
+                    "params": repr(params),
+                }
+            )
+            say(
+                f"p={p} seed={seed} {method:16s} sse={rows[-1]['sse']:9.3f} "
+                f"{rows[-1]['ms_per_row']:.2f} ms/row {params}"
+            )
 
         chosen, _ = select_complete(X_train, p, seed, cv)
         model = RobustKernelPCA(gamma=chosen["gamma"], tau=chosen["tau"]).fit(X_train)
-        X_hat, seconds = _timed(lambda: model.complete(W, mask, n_neighbors=chosen["n_neighbors"], starts=chosen["starts"]))
+        X_hat, seconds = _timed(
+            lambda: model.complete(W, mask, n_neighbors=chosen["n_neighbors"], starts=chosen["starts"])
+        )
         record("complete", X_hat, seconds, X_test.shape[0], {**chosen, "rank": model.n_components_})
 
         knn = select_knn(X_train, p, seed, cv)
@@ -172,10 +183,18 @@ class OutOfSample(Experiment):
             joint = np.vstack([X_train[: ours["n_train"]], W[:n_sub]])
             joint_mask = np.vstack([np.ones((ours["n_train"], X_test.shape[1]), bool), mask[:n_sub]])
             term = MaskedLeastSquares(np.where(joint_mask, joint, 0.0), joint_mask)
-            res, seconds = _timed(lambda: minimize_regularized(
-                term, mean_impute(joint, joint_mask), gamma=ours["gamma"], tau=ours["tau"], **ours["schedule"]
-            ))
-            record("Ours", res.x[ours["n_train"]:], seconds, n_sub, {"gamma": ours["gamma"], "tau": ours["tau"]})
+            res, seconds = _timed(
+                lambda: minimize_regularized(
+                    term,
+                    mean_impute(joint, joint_mask),
+                    gamma=ours["gamma"],
+                    tau=ours["tau"],
+                    **ours["schedule"],
+                )
+            )
+            record(
+                "Ours", res.x[ours["n_train"] :], seconds, n_sub, {"gamma": ours["gamma"], "tau": ours["tau"]}
+            )
         return JobOutput(rows=pd.DataFrame(rows))
 
     def summarise(self, runs):
@@ -199,7 +218,7 @@ class OutOfSample(Experiment):
             f"over all test entries, mean ± sd over {s['n_masks']} seeded masks per p; ms_per_row: CPU ms "
             "per test row of the completion step (fit excluded; one BLAS thread). Knobs of complete and "
             f"KNNImputer by {cv['n_folds']}-fold hold-out CV on {cv['holdout_rows']} training rows per fold "
-            f"(entries hidden at the same p). Ours: the regularizer solved jointly on the first {o['n_train']} "
-            f"training and first {o['n_test']} test rows (paper's gamma = {o['gamma']:g}, tau = {o['tau']:g}; "
-            "not CV), compared on sse_subset, the SSE over those test rows."
+            f"(entries hidden at the same p). Ours: the regularizer solved jointly on the first "
+            f"{o['n_train']} training and first {o['n_test']} test rows (paper's gamma = {o['gamma']:g}, "
+            f"tau = {o['tau']:g}; not CV), compared on sse_subset, the SSE over those test rows."
         )
