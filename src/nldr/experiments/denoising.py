@@ -124,7 +124,7 @@ def _grids(cv):
             {"gamma": g, "tau": t, "rho": r}
             for g, t, r in itertools.product(cv["gammas"], cv["rkpca_tau"], cv["rkpca_rho"])
         ],
-        "Ours": [{"gamma": g, "tau": t} for g, t in itertools.product(cv["gammas"], cv["ours_tau"])],
+        "Ours": [{"gamma": g, "tau": t} for g, t in itertools.product(cv["ours_gammas"], cv["ours_tau"])],
     }
 
 
