@@ -18,9 +18,11 @@ a denoiser predicts the pixels of J from the other pixels only, and is scored by
 difference to the noisy values of J. As the noise on J is independent of that prediction, the expected
 score is the prediction's squared error against the clean pixels plus sigma^2 per pixel, a constant, so
 the knob with the lowest score is, in expectation, the one with the lowest clean error of the held-out
-prediction. Hiding J is native for the regularizer and for ``complete`` (mask False on J); PCA and
-KernelPCA cannot take missing pixels, so J is filled with the training split's pixel means before their
-reconstruction. Scoring a reconstruction against the noisy image it was computed from would instead
+prediction. Hiding J is native for the regularizer (mask False on J); for the fit-then-apply methods
+J is filled with the training split's pixel means before their reconstruction. ``RobustKernelPCA`` is
+scored the same way (J filled, then denoised with every pixel observed), not by completing J: its knob
+rho sets how far observed pixels move, and a prediction of hidden pixels alone would not penalise a rho
+too small to denoise. Scoring a reconstruction against the noisy image it was computed from would instead
 reward the identity (no denoising). Fit-then-apply methods are fitted on the first part of the noisy
 training split and scored on the rest (``cv.validation``); ``Ours`` is scored on the noisy test images
 themselves, which is legitimate (only their noisy values are used).
@@ -101,8 +103,9 @@ def _kpca_predict(gamma, n_components, alpha):
 
 def _rkpca_predict(gamma, tau, rho):
     def fit(Y_fit):
-        model = RobustKernelPCA(gamma=gamma, tau=tau).fit(Y_fit)
-        return lambda Y, obs: model.complete(Y, obs, rho=rho)
+        model, means = RobustKernelPCA(gamma=gamma, tau=tau).fit(Y_fit), Y_fit.mean(axis=0)
+        every = np.ones(Y_fit.shape[1], dtype=bool)
+        return lambda Y, obs: model.complete(_filled(Y, obs, means), np.broadcast_to(every, Y.shape), rho=rho)
 
     return fit
 
