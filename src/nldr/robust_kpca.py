@@ -22,8 +22,9 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ._spectral import EIGENSOLVERS, check_eigensolver, cubic_threshold, leading_eigenpairs, shrink, spectrum
 from ._threads import blas_threads_for
-from ._validation import check_positive, check_symmetric_kernel
+from ._validation import check_count, check_positive, check_symmetric_kernel
 from .kernels import center_cross_kernel, center_kernel, rbf_kernel
+from .preimage import Subspace, complete_rows, neighbour_start, preimage
 
 __all__ = [
     "EIGENSOLVERS",
@@ -257,6 +258,112 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
             K = center_cross_kernel(K, self.kernel_column_means_)
         scale = self.singular_values_ / self.eigenvalues_
         return (K @ self.eigenvectors_) * scale[None, :]
+
+    def _subspace(self) -> Subspace:
+        return Subspace(
+            X_fit=self.X_fit_,
+            gamma=self.gamma_,
+            V=self.eigenvectors_ / np.sqrt(self.eigenvalues_)[None, :],
+            column_means=self.kernel_column_means_ if self.center else None,
+        )
+
+    def inverse_transform(self, Z, *, max_iter: int = 500):
+        """Pre-images of points given by their coordinates, so that ``inverse_transform(transform(X))``
+        is X pulled onto the learned manifold.
+
+        Parameters
+        ----------
+        Z : array, shape (m, n_components_)
+            Coordinates as :meth:`transform` returns them (shrunk by l / sqrt(lambda) per axis).
+        max_iter : int, default 500
+            L-BFGS iterations per block of rows.
+
+        Returns
+        -------
+        X : array, shape (m, n_features_in_)
+            For each row z, a local minimiser of the feature-space distance ||phi(x) - mu - sum_i a_i
+            e_i||^2 with a_i = z_i sqrt(lambda_i) / l_i (the point of the subspace that ``transform``
+            mapped to z), started at the training sample whose coordinates are nearest to z
+            (:mod:`nldr.preimage`). Unlike scikit-learn's ``KernelPCA``, no regression is learned: the
+            pre-image is computed.
+        """
+        check_is_fitted(self)
+        Z = np.asarray(Z, dtype=np.float64)
+        if Z.ndim != 2 or Z.shape[1] != self.n_components_:
+            raise ValueError(
+                f"Z must have shape (n_samples, {self.n_components_}) (n_components_); got {Z.shape}"
+            )
+        if not np.all(np.isfinite(Z)):
+            raise ValueError("Z contains NaN or infinite values")
+        T = self.eigenvectors_ * self.singular_values_[None, :]
+        D = (Z**2).sum(axis=1)[:, None] - 2.0 * Z @ T.T + (T**2).sum(axis=1)[None, :]
+        X0 = self.X_fit_[np.argmin(D, axis=1)]
+        A = Z * (np.sqrt(self.eigenvalues_) / self.singular_values_)[None, :]
+        with blas_threads_for(self.X_fit_.shape[0]):
+            X, _ = preimage(self._subspace(), A, X0, max_iter=check_count(max_iter, "max_iter"))
+        return X
+
+    def complete(self, X, mask, *, rho=None, n_neighbors: int = 5, starts: str = "mean", max_iter: int = 500):
+        """Complete (and with finite rho denoise) rows never seen in ``fit`` against the learned manifold.
+
+        Each row w with observation mask m solves the pre-image problem
+
+            min_x ||m o (x - w)||^2 + rho * dist(phi(x), principal subspace)^2
+
+        with dist the feature-space distance of phi(x) to its projection onto the learned principal
+        subspace (kernel units). ``rho=None`` is the hard limit: the observed entries are kept and the
+        missing ones minimise the distance alone (completion); with a finite rho every entry may move,
+        so ``mask`` all True denoises. The missing entries start at the mean of the ``n_neighbors``
+        training rows nearest on the observed entries; the problem is not convex, so the answer is the
+        local minimum from that start (:mod:`nldr.preimage`). With ``starts="each"`` the problem is
+        solved from each of the ``n_neighbors`` nearest training rows and the local minima are averaged:
+        when few entries are observed, several branches of the manifold agree with them, and their mean
+        has a lower expected squared error than any one branch (the cost is ``n_neighbors`` times).
+
+        Parameters
+        ----------
+        X : array, shape (m, n_features_in_)
+            New rows; entries where ``mask`` is False are ignored (NaN allowed there).
+        mask : bool array, shape (m, n_features_in_)
+            True where observed.
+        rho : float > 0 or None, default None
+            Weight of the squared feature distance against the squared data residual (data units^2).
+        n_neighbors : int, default 5
+            Training rows nearest on the observed entries, that give the starts.
+        starts : {"mean", "each"}, default "mean"
+            One start at the neighbours' mean, or one start per neighbour with the results averaged.
+        max_iter : int, default 500
+            L-BFGS iterations per block of rows.
+
+        Returns
+        -------
+        X_hat : array, shape (m, n_features_in_)
+        """
+        check_is_fitted(self)
+        X = np.asarray(X, dtype=np.float64)
+        if X.ndim != 2 or X.shape[1] != self.n_features_in_:
+            raise ValueError(f"X must have shape (n_samples, {self.n_features_in_}); got {X.shape}")
+        mask = np.asarray(mask)
+        if mask.dtype != bool:
+            raise ValueError(f"mask must be a boolean array (True = observed); got dtype {mask.dtype}")
+        if mask.shape != X.shape:
+            raise ValueError(f"mask must have X's shape {X.shape}; got {mask.shape}")
+        if not np.all(np.isfinite(X[mask])):
+            raise ValueError("X has NaN or infinite values at observed entries (where mask is True)")
+        rho = None if rho is None else check_positive(rho, "rho")
+        if starts not in ("mean", "each"):
+            raise ValueError(f"starts must be 'mean' or 'each'; got {starts!r}")
+        k = check_count(n_neighbors, "n_neighbors")
+        X0 = neighbour_start(self.X_fit_, X, mask, k, each=starts == "each")
+        m, d = X.shape
+        if starts == "each":
+            k = X0.shape[1]
+            X, mask, X0 = np.repeat(X, k, axis=0), np.repeat(mask, k, axis=0), X0.reshape(m * k, d)
+        with blas_threads_for(self.X_fit_.shape[0]):
+            X_hat, _ = complete_rows(
+                self._subspace(), X, mask, X0, rho=rho, max_iter=check_count(max_iter, "max_iter")
+            )
+        return X_hat.reshape(m, -1, d).mean(axis=1)
 
     def fit_transform(self, X, y=None):
         """Fit and return the training coordinates ``U diag(l)``, shape (n_samples, n_components_)."""

@@ -28,6 +28,8 @@ _REGISTRY = {
     "selection": ("selection", "Selection"),
     "selection_nrsfm": ("selection_nrsfm", "SelectionNRSfM"),
     "robust": ("robust", "Robust"),
+    "out_of_sample": ("out_of_sample", "OutOfSample"),
+    "denoising": ("denoising", "Denoising"),
 }
 _INSTANCES: dict[str, Experiment] = {}
 
