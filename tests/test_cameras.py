@@ -17,6 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from nldr.datasets import load_mocap
 from nldr.nrsfm.camera_refinement import (
+    camera_movement_deg,
     refine_cameras,
     refine_cameras_and_shapes,
     reprojection_error,
@@ -712,3 +713,27 @@ def test_every_nrsfm_solver_result_is_a_solver_result():
         assert np.isfinite(res.fun) and res.message
         text = repr(res)
         assert "\n" not in text and text.startswith(type(res).__name__) and f"nit={res.nit}" in text
+
+
+@pytest.mark.parametrize("degrees", [1e-4, 0.5, 30.0, 179.0])
+def test_camera_movement_deg_is_the_rotation_angle(degrees):
+    """Cameras rotated by exactly `degrees` about random axes moved by `degrees` (mean over frames)."""
+    rng = np.random.default_rng(7)
+    _, R, _, _ = rigid_scene(n_frames=12, seed=3)
+    moved = perturb_cameras(R, degrees, rng)
+    assert camera_movement_deg(R, moved) == pytest.approx(degrees, rel=1e-7, abs=1e-9)
+    assert camera_movement_deg(R, R) == 0.0
+
+
+def test_refine_cameras_and_shapes_stops_once_the_cameras_stop_moving():
+    """With the true shapes as the shape step and the true cameras as the start, the camera step has
+    nothing to fix: with camera_atol_deg the alternation stops after one iteration, converged;
+    without it, the reprojection test needs more than window iterations."""
+    W, R, X, _ = rigid_scene(n_frames=10, seed=5)
+    step = lambda R_: X  # noqa: E731
+    res = refine_cameras_and_shapes(W, None, R, step, max_outer=20, tol=1e-4, window=3, camera_atol_deg=1e-3)
+    assert res.nit == 1 and res.success and "camera_atol_deg" in res.message
+    plain = refine_cameras_and_shapes(W, None, R, step, max_outer=20, tol=1e-4, window=3)
+    assert plain.nit > 3
+    with pytest.raises(ValueError, match="camera_atol_deg"):
+        refine_cameras_and_shapes(W, None, R, step, camera_atol_deg=-1.0)

@@ -98,6 +98,7 @@ def run_sequence(
     widths=("d_max", "d_med"),
     kernel_max_outer: int = 20,
     kernel_tol: float = 1e-4,
+    kernel_camera_atol_deg: float | None = None,
     rho0: float = 1e-3,
     rho_growth: float = 10.0,
     rho_max: float = 10.0,
@@ -123,6 +124,9 @@ def run_sequence(
     kernel_max_outer, kernel_tol
         Outer iterations of the kernel shape step / camera LM alternation, and its stopping tolerance
         (relative decrease of the reprojection error over 3 iterations).
+    kernel_camera_atol_deg : float > 0, optional
+        Also stop the kernel alternation once a camera step moved the cameras by less than this mean
+        angle (degrees): the next shape step would re-solve the same problem.
     rho0, rho_growth, rho_max
         Penalty schedule of the regularizer (as for Table 3).
     progress : callable, optional
@@ -205,7 +209,15 @@ def run_sequence(
         gamma = WIDTHS[width](best.x)
         start = time.perf_counter()
         alt = kernel_with_camera_refinement(
-            W2d, mask, best.R, best.x, gamma=gamma, max_outer=kernel_max_outer, tol=kernel_tol, **schedule
+            W2d,
+            mask,
+            best.R,
+            best.x,
+            gamma=gamma,
+            max_outer=kernel_max_outer,
+            tol=kernel_tol,
+            camera_atol_deg=kernel_camera_atol_deg,
+            **schedule,
         )
         record(
             f"Kernel {width}",
@@ -284,6 +296,7 @@ class Table4(MocapExperiment):
             widths=tuple(settings["widths"]),
             kernel_max_outer=kernel.pop("max_outer", 20),
             kernel_tol=kernel.pop("tol", 1e-4),
+            kernel_camera_atol_deg=kernel.pop("camera_atol_deg", None),
             progress=progress,
             **kernel,
         )

@@ -49,6 +49,7 @@ __all__ = [
     "refine_cameras",
     "rigid_shape_step",
     "refine_cameras_and_shapes",
+    "camera_movement_deg",
 ]
 
 
@@ -344,6 +345,7 @@ def refine_cameras_and_shapes(
     penalty: Callable[[np.ndarray], float] | None = None,
     callback: Callable[[int, np.ndarray, np.ndarray], None] | None = None,
     window: int = 1,
+    camera_atol_deg: float | None = None,
 ) -> CameraShapeResult:
     """Alternate a shape step X = shape_step(R) with the camera LM (:func:`refine_cameras`).
 
@@ -385,6 +387,11 @@ def refine_cameras_and_shapes(
         about 10 keeps a slow but steady descent going where a one-step test would stop it (Table 4's
         TNH alternation, :func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement`).
 
+    camera_atol_deg : float > 0, optional
+        Also stop (converged) after an outer iteration whose camera step moved the cameras by less
+        than this mean angle in degrees: the next shape step would then solve the problem it has
+        just solved (a fixed point, up to the shape step's own tolerance). Default: no such test.
+
     Returns
     -------
     CameraShapeResult
@@ -402,6 +409,8 @@ def refine_cameras_and_shapes(
     camera_max_iter = check_count(camera_max_iter, "camera_max_iter")
     camera_ftol = check_positive(camera_ftol, "camera_ftol")
     window = check_count(window, "window")
+    if camera_atol_deg is not None:
+        camera_atol_deg = check_positive(camera_atol_deg, "camera_atol_deg")
     Wf3 = W.reshape(F, 2, P)
     q = camera_to_quaternion(R)
     history, shape_history, energy = [], [], []
@@ -418,7 +427,9 @@ def refine_cameras_and_shapes(
         t1 = time.perf_counter()
         Sf = X.reshape(F, 3, P)
         shape_history.append(float(_frame_costs(Wf3, mask, R, Sf)[0].sum()))
+        R_before = R
         q, R, _, frame_cost, _, _, _ = _refine_cameras(Wf3, mask, q, Sf, camera_max_iter, camera_ftol, 1e-12)
+        moved = np.inf if camera_atol_deg is None else camera_movement_deg(R_before, R)
         camera_time += time.perf_counter() - t1
         shape_time += t1 - t0
         history.append(float(frame_cost.sum()))
@@ -428,6 +439,10 @@ def refine_cameras_and_shapes(
             monitored = energy
         if callback is not None:
             callback(k, R.copy(), X.copy())
+        if camera_atol_deg is not None and moved < camera_atol_deg:
+            converged = True
+            message = f"cameras moved by {moved:.3g} deg < camera_atol_deg after {k} iterations"
+            break
         if k > window:
             previous = monitored[-1 - window]
             decrease = (previous - monitored[-1]) / previous if previous > 0 else 0.0
@@ -453,3 +468,15 @@ def refine_cameras_and_shapes(
         shape_time=shape_time,
         camera_time=camera_time,
     )
+
+
+def camera_movement_deg(R_a, R_b) -> float:
+    """Mean over frames of the rotation angle between cameras ``R_a`` and ``R_b`` (F, 2, 3), in degrees
+    (no global alignment: how far one step moved the cameras)."""
+    A = nearest_orthonormal_rows(check_cameras(R_a, name="R_a"))
+    B = nearest_orthonormal_rows(check_cameras(R_b, A.shape[0], name="R_b"))
+    A3 = np.concatenate([A, np.cross(A[:, 0], A[:, 1])[:, None]], axis=1)
+    B3 = np.concatenate([B, np.cross(B[:, 0], B[:, 1])[:, None]], axis=1)
+    # chordal distance ||A3 - B3||_F = 2 sqrt(2) sin(theta / 2), well conditioned for small angles
+    chord = np.linalg.norm(A3 - B3, axis=(1, 2))
+    return float(np.degrees(2 * np.arcsin(np.clip(chord / (2 * np.sqrt(2)), 0, 1))).mean())
