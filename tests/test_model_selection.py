@@ -306,7 +306,7 @@ def test_verbose_reports_every_candidate_solve_and_changes_nothing(capsys):
     assert capsys.readouterr().out == ""
     loud = select_regularizer(W, mask, verbose=True, **kwargs)
     lines = capsys.readouterr().out.splitlines()
-    solves = [line for line in lines if "hold-out MSE" in line]
+    solves = [line for line in lines if "hold-out error" in line]
     assert len(solves) == 2 * 2 * 2  # folds x gammas x taus, each once
     for fold in (1, 2):
         for gamma in (0.5, 1.0):
@@ -323,5 +323,5 @@ def test_verbose_reports_every_candidate_solve_and_changes_nothing(capsys):
     impute, _ = baseline_grid("PPCA", W, mask)
     sel = select_imputer(impute, W, mask, {"n_components": [1, 2]}, n_folds=3, verbose=True)
     lines = capsys.readouterr().out.splitlines()
-    assert sum("hold-out MSE" in line for line in lines) == 2 * 3
+    assert sum("hold-out error" in line for line in lines) == 2 * 3
     assert any(f"chose {sel.best_params_}" in line for line in lines)

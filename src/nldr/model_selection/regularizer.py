@@ -240,7 +240,8 @@ def select_regularizer(
         S0 = mean_fill(np.where(train, W, 0.0), train)
         for group in [gammas] if warm_gamma else [[g] for g in gammas]:
             path = (W, train, hidden, S0, group, taus, bool(center), warm_start, warm_gamma, stop)
-            jobs.append((_regularizer_path, (*path, fold_options, score, verbose, f"fold {i + 1}/{len(folds)} ")))
+            label = f"fold {i + 1}/{len(folds)} "
+            jobs.append((_regularizer_path, (*path, fold_options, score, verbose, label)))
     say(verbose, "select_regularizer", f"{len(gammas)} gammas x {len(taus)} taus, {len(folds)} folds")
 
     def done(finished, total, seconds):
