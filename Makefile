@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 CORES ?= all
 
-.PHONY: setup reproduce quick scale test mutants lint dryrun bench docs clean
+.PHONY: setup reproduce quick scale future test mutants lint dryrun bench docs clean
 
 $(BIN)/.installed: pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -24,6 +24,9 @@ quick: setup  ## the same pipeline on the small protocol (config/quick.yaml), un
 
 scale: setup  ## extra targets beyond the paper: Table 2 on all 1000 training and all 3000 oil rows, Table 3 on every frame
 	$(BIN)/snakemake --cores $(CORES) table2_full table2_all table3_full
+
+future: setup  ## the paper's future work, not in the paper: robust data term, new rows, denoising
+	$(BIN)/snakemake --cores $(CORES) robust out_of_sample denoising
 
 test: setup  ## the whole test suite (pipeline tests use config/quick.yaml)
 	$(BIN)/python -m pytest
