@@ -252,7 +252,12 @@ class Denoising(Experiment):
                 ax.imshow(np.clip(a[name][j], 0, 1).reshape(8, 8), cmap="gray_r", vmin=0, vmax=1)
                 ax.set_xticks([])
                 ax.set_yticks([])
-            axes[i, 0].set_ylabel(name, rotation=0, ha="right", va="center", fontsize=8)
-        fig.suptitle(job, fontsize=9)
+            label = name
+            if name != "clean":  # error of the images shown, against the clean ones
+                mse = float(np.mean((a[name][:n] - a["clean"][:n]) ** 2))
+                label = f"{name}\nMSE {mse:.4f}"
+            axes[i, 0].set_ylabel(label, rotation=0, ha="right", va="center", fontsize=8)
+        noise, seed = job.split("_")[0].removeprefix("noise"), job.split("_")[-1].removeprefix("seed")
+        fig.suptitle(f"noise sd {noise}, seed {seed}: the first {n} test images", fontsize=9)
         fig.tight_layout()
         return fig

@@ -195,8 +195,13 @@ def select_regularizer(
     n_jobs : int >= 1, default=1
         Processes over the folds (over the (fold, gamma) pairs if ``warm_gamma`` is False); each
         solve runs on one BLAS thread.
-    W, train, hidden, S0, gammas, taus, center, warm_start, warm_gamma, stop, options, score="squared",
-    verbose=False, fold=""
+    score : {"squared", "absolute"}, default "squared"
+        Fold score per hidden entry: squared error, or absolute error (robust to gross outliers among
+        the observed entries; :data:`nldr.model_selection.folds.SCORES`).
+    verbose : bool, default=False
+        Print progress to stdout: a line per candidate solve (its fold, gamma, tau, hold-out error and
+        seconds; from the worker processes when ``n_jobs > 1``, which a notebook does not show), a line
+        per finished fold job, the choice and the refit.
     **solver_options
         Passed to :func:`~nldr.regularizer.minimize_regularized` (``rho0, rho_growth, rho_max,
         max_inner, tol, gtol, eigensolver``); ``isolation_guard`` is always on.
