@@ -25,7 +25,7 @@ def constraints() -> dict[str, str]:
 
 def test_core_dependencies_are_ranges_and_tools_are_extras():
     core = [Requirement(r) for r in PYPROJECT["project"]["dependencies"]]
-    assert {r.name for r in core} == {"numpy", "scipy", "scikit-learn", "pandas", "threadpoolctl"}
+    assert {r.name for r in core} == {"numpy", "scipy", "scikit-learn", "pandas", "threadpoolctl", "pooch"}
     assert all(not any(s.operator == "==" for s in r.specifier) for r in core)  # ranges, not pins
     extras = PYPROJECT["project"]["optional-dependencies"]
     assert {"plot", "cvxpy", "pipeline", "dev"} <= set(extras)
