@@ -179,7 +179,11 @@ class SelectionNRSfM(MocapExperiment):
     def _run_table4(W2d, mask, t, settings, folds, kernel_grid, record, arrays):
         tnh_cfg, kernel_cfg = dict(t["tnh"]), dict(t["kernel"])
         alternation = dict(max_outer=tnh_cfg.get("max_outer", 20_000), tol=tnh_cfg.get("tol", 1e-8))
-        camera = dict(max_outer=kernel_cfg.pop("max_outer", 20), tol=kernel_cfg.pop("tol", 1e-4))
+        camera = dict(
+            max_outer=kernel_cfg.pop("max_outer", 20),
+            tol=kernel_cfg.pop("tol", 1e-4),
+            camera_atol_deg=kernel_cfg.pop("camera_atol_deg", None),
+        )
         g = settings["tnh_grid"]
         taus = np.logspace(g["log10_tau"]["min"], g["log10_tau"]["max"], g["log10_tau"]["num"])
         start = time.process_time()
