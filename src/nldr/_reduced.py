@@ -25,6 +25,8 @@ over it.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.optimize import minimize
 
@@ -39,6 +41,7 @@ __all__ = [
     "kernel_factor",
     "lbfgs_stage",
     "lbfgs_minimize",
+    "StageInfo",
 ]
 
 
@@ -147,3 +150,47 @@ def lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies):
     # progress, which at these tolerances means rounding noise at the minimum.
     converged = res.status != 1
     return res.x.reshape(shape), int(res.nit), converged, str(res.message)
+
+
+@dataclass(frozen=True)
+class StageInfo:
+    """What ``minimize_regularized(callback=...)`` receives after every penalty stage.
+
+    Attributes
+    ----------
+    stage : int
+        Index of the stage (0 for rho0).
+    n_stages : int
+        Number of stages in the schedule.
+    rho : float
+        The stage's penalty weight.
+    nit : int
+        Inner iterations of this stage.
+    energy : float
+        Energy (1) at the end of the stage, at its rho.
+    rank : int
+        Rank of C at the end of the stage.
+    converged : bool
+        Whether the stage met its tolerance.
+    seconds : float
+        Wall-clock seconds the stage took.
+    x : array, shape (n_samples, n_features)
+        A copy of the estimate S at the end of the stage.
+    """
+
+    stage: int
+    n_stages: int
+    rho: float
+    nit: int
+    energy: float
+    rank: int
+    converged: bool
+    seconds: float
+    x: np.ndarray
+
+    def __str__(self) -> str:
+        return (
+            f"stage {self.stage + 1}/{self.n_stages}: rho {self.rho:g}, {self.nit} iterations, "
+            f"energy {self.energy:.8g}, rank {self.rank}, {self.seconds:.2f} s"
+            + ("" if self.converged else " (iteration limit)")
+        )

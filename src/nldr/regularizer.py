@@ -46,6 +46,7 @@ from ._nystroem import landmark_indices, landmark_map, nystroem_factor, nystroem
 from ._reduced import (
     KRYLOV_AUTO_FRACTION,
     RankHint,
+    StageInfo,
     kernel_factor,
     lbfgs_minimize,
     lbfgs_stage,
@@ -285,50 +286,6 @@ def isolation_safe_rho0(tau: float) -> float:
     rho : float
     """
     return check_positive(tau, "tau") * np.sqrt(27.0 / 8.0)
-
-
-@dataclass(frozen=True)
-class StageInfo:
-    """What ``minimize_regularized(callback=...)`` receives after every penalty stage.
-
-    Attributes
-    ----------
-    stage : int
-        Index of the stage (0 for rho0).
-    n_stages : int
-        Number of stages in the schedule.
-    rho : float
-        The stage's penalty weight.
-    nit : int
-        Inner iterations of this stage.
-    energy : float
-        Energy (1) at the end of the stage, at its rho.
-    rank : int
-        Rank of C at the end of the stage.
-    converged : bool
-        Whether the stage met its tolerance.
-    seconds : float
-        Wall-clock seconds the stage took.
-    x : array, shape (n_samples, n_features)
-        A copy of the estimate S at the end of the stage.
-    """
-
-    stage: int
-    n_stages: int
-    rho: float
-    nit: int
-    energy: float
-    rank: int
-    converged: bool
-    seconds: float
-    x: np.ndarray
-
-    def __str__(self) -> str:
-        return (
-            f"stage {self.stage + 1}/{self.n_stages}: rho {self.rho:g}, {self.nit} iterations, "
-            f"energy {self.energy:.8g}, rank {self.rank}, {self.seconds:.2f} s"
-            + ("" if self.converged else " (iteration limit)")
-        )
 
 
 def penalty_method(
