@@ -27,12 +27,15 @@
 # The runs happened upstream (`snakemake -c all denoising`); this notebook reads their outputs.
 
 # %% tags=["parameters"]
-table = "results/tables/denoising.csv"
-runs = []  # per-seed CSVs; empty means every file in results/runs/denoising/
+configfile = ""  # "": config/config.yaml (the full protocol); or e.g. "config/quick.yaml"
+workdir = ""  # folder the paths below are relative to; "": the repository (found from its Snakefile)
+results = ""  # the results folder; "": the config's (results/, or results/quick/ for quick.yaml)
+table = ""  # "": <results>/tables/denoising.csv
+runs = []  # per-job CSVs; empty: every file in <results>/runs/denoising/
 arrays = []
 figures = []
-settings = {}
-data_dir = "resources"
+settings = {}  # the experiment's config block as the pipeline ran it; empty: the config's
+data_dir = ""  # folder holding the data; "": the config's data.dir
 
 # %%
 from pathlib import Path
@@ -41,9 +44,20 @@ import pandas as pd
 from IPython.display import Image, Markdown, display
 
 from nldr import tables
+from nldr.experiments.notebook import locate
 
-root = Path.cwd() if (Path.cwd() / "Snakefile").exists() else Path.cwd().parent
-run_paths = [Path(r) for r in runs] or sorted((root / "results/runs/denoising").glob("*.csv"))
+nb = locate(  # the repository (walking up to its Snakefile), the config and this run's files
+    "denoising",
+    configfile=configfile,
+    workdir=workdir,
+    results=results,
+    table=table,
+    runs=runs,
+    arrays=arrays,
+    settings=settings,
+    data_dir=data_dir,
+)
+root, results, settings, table_path, run_paths = nb.root, nb.results, nb.settings, nb.table, nb.runs
 
 # %% [markdown]
 # ## The table
@@ -51,7 +65,7 @@ run_paths = [Path(r) for r in runs] or sorted((root / "results/runs/denoising").
 # images (Ours: NaN, it solves a subset); `mse_subset`: the images Ours solved.
 
 # %%
-result = pd.read_csv(root / table)
+result = pd.read_csv(table_path)
 display(Markdown(tables.to_markdown(result, digits=4, metrics=["mse", "mse_subset"], transpose=True)))
 
 # %% [markdown]
@@ -74,7 +88,7 @@ for setting, group in wide.groupby(level=0):
 # ## The images
 
 # %%
-for figure in figures or [root / "results/figures/denoising_digits.png"]:
+for figure in figures or [results / "figures/denoising_digits.png"]:
     if Path(figure).exists():
         display(Image(filename=str(figure)))
 

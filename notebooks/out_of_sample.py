@@ -25,23 +25,36 @@
 # The runs happened upstream (`snakemake -c all out_of_sample`); this notebook reads their outputs.
 
 # %% tags=["parameters"]
-table = "results/tables/out_of_sample.csv"
-runs = []  # per-mask CSVs; empty means every file in results/runs/out_of_sample/
+configfile = ""  # "": config/config.yaml (the full protocol); or e.g. "config/quick.yaml"
+workdir = ""  # folder the paths below are relative to; "": the repository (found from its Snakefile)
+results = ""  # the results folder; "": the config's (results/, or results/quick/ for quick.yaml)
+table = ""  # "": <results>/tables/out_of_sample.csv
+runs = []  # per-job CSVs; empty: every file in <results>/runs/out_of_sample/
 arrays = []
 figures = []
-settings = {}  # the experiment's config block as the pipeline ran it
-data_dir = "resources"
+settings = {}  # the experiment's config block as the pipeline ran it; empty: the config's
+data_dir = ""  # folder holding the data; "": the config's data.dir
 
 # %%
-from pathlib import Path
 
 import pandas as pd
 from IPython.display import Markdown, display
 
 from nldr import tables
+from nldr.experiments.notebook import locate
 
-root = Path.cwd() if (Path.cwd() / "Snakefile").exists() else Path.cwd().parent
-run_paths = [Path(r) for r in runs] or sorted((root / "results/runs/out_of_sample").glob("*.csv"))
+nb = locate(  # the repository (walking up to its Snakefile), the config and this run's files
+    "out_of_sample",
+    configfile=configfile,
+    workdir=workdir,
+    results=results,
+    table=table,
+    runs=runs,
+    arrays=arrays,
+    settings=settings,
+    data_dir=data_dir,
+)
+root, results, settings, table_path, run_paths = nb.root, nb.results, nb.settings, nb.table, nb.runs
 
 # %% [markdown]
 # ## The table
@@ -49,7 +62,7 @@ run_paths = [Path(r) for r in runs] or sorted((root / "results/runs/out_of_sampl
 # solved; `ms_per_row`: CPU milliseconds per test row of the completion step (fit excluded).
 
 # %%
-result = pd.read_csv(root / table)
+result = pd.read_csv(table_path)
 display(
     Markdown(
         tables.to_markdown(result, digits=3, metrics=["sse", "sse_subset", "ms_per_row"], transpose=True)

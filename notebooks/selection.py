@@ -37,7 +37,6 @@ settings = {}  # the experiment's config block as the pipeline ran it; empty: th
 data_dir = ""  # folder holding oil/ and nrsfm/; "": the config's data.dir
 
 # %%
-from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -45,18 +44,21 @@ import pandas as pd
 from IPython.display import Markdown, display
 
 from nldr import tables
-from nldr.experiments import get
-from nldr.experiments.notebook import load_config, need, repo_root
+from nldr.experiments.notebook import locate
 
-root = repo_root()  # walks up from the working directory to the Snakefile
-config = load_config(root, configfile)
-base = Path(workdir) if workdir else root
-results = base / (results or config["results"])
-settings = settings or get("selection").settings(config)
-table_path = need(base / (table or results / "tables/selection.csv"), "selection")
-run_paths = [base / r for r in runs] or sorted((results / "runs/selection").glob("*.csv"))
-data_dir = base / (data_dir or config["data"]["dir"])
-array_paths = [base / a for a in arrays] or [p.with_suffix(".npz") for p in run_paths]
+nb = locate(  # the repository (walking up to its Snakefile), the config and this run's files
+    "selection",
+    configfile=configfile,
+    workdir=workdir,
+    results=results,
+    table=table,
+    runs=runs,
+    arrays=arrays,
+    settings=settings,
+    data_dir=data_dir,
+)
+root, config, results, settings, data_dir = nb.root, nb.config, nb.results, nb.settings, nb.data_dir
+table_path, run_paths, array_paths = nb.table, nb.runs, nb.arrays
 
 # %% [markdown]
 # ## The table

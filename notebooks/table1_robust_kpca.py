@@ -40,27 +40,30 @@ settings = {}  # the experiment's config block as the pipeline ran it; empty: th
 data_dir = ""  # folder holding oil/ and nrsfm/; "": the config's data.dir
 
 # %%
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from IPython.display import Markdown, display
 
 from nldr import tables
-from nldr.experiments import get
-from nldr.experiments.notebook import load_config, need, repo_root
+from nldr.experiments.notebook import locate
 from nldr.experiments.table1 import figure3_curves
 from nldr.plotting import figure3
 from nldr.robust_kpca import rank_penalty_threshold, shrink_eigenvalues
 
-root = repo_root()  # walks up from the working directory to the Snakefile
-config = load_config(root, configfile)
-base = Path(workdir) if workdir else root
-results = base / (results or config["results"])
-settings = settings or get("table1").settings(config)
-table_path = need(base / (table or results / "tables/table1.csv"), "table1")
-run_paths = [base / r for r in runs] or sorted((results / "runs/table1").glob("*.csv"))
-data_dir = base / (data_dir or config["data"]["dir"])
+nb = locate(  # the repository (walking up to its Snakefile), the config and this run's files
+    "table1",
+    configfile=configfile,
+    workdir=workdir,
+    results=results,
+    table=table,
+    runs=runs,
+    arrays=arrays,
+    settings=settings,
+    data_dir=data_dir,
+)
+root, config, results, settings, data_dir = nb.root, nb.config, nb.results, nb.settings, nb.data_dir
+table_path, run_paths, array_paths = nb.table, nb.runs, nb.arrays
 
 # %% [markdown]
 # ## What the closed form does to a spectrum

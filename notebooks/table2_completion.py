@@ -50,7 +50,6 @@ settings = {}  # the experiment's config block as the pipeline ran it; empty: th
 data_dir = ""  # folder holding oil/ and nrsfm/; "": the config's data.dir
 
 # %%
-from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -61,26 +60,30 @@ from nldr import tables
 from nldr.baselines import mean_impute
 from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import load_oil
-from nldr.experiments import get
-from nldr.experiments.notebook import cached, load_config, need, repo_root
+from nldr.experiments.notebook import cached, locate
 from nldr.experiments.table2 import METHODS, PEER_ROWS, random_mask
 from nldr.regularizer import minimize_regularized
 
-root = repo_root()  # walks up from the working directory to the Snakefile
-config = load_config(root, configfile)
-base = Path(workdir) if workdir else root
-results = base / (results or config["results"])
-settings = settings or get("table2").settings(config)
-table_path = need(base / (table or results / "tables/table2.csv"), "table2")
-run_paths = [base / r for r in runs] or sorted((results / "runs/table2").glob("*.csv"))
-data_dir = base / (data_dir or config["data"]["dir"])
+nb = locate(  # the repository (walking up to its Snakefile), the config and this run's files
+    "table2",
+    configfile=configfile,
+    workdir=workdir,
+    results=results,
+    table=table,
+    runs=runs,
+    arrays=arrays,
+    settings=settings,
+    data_dir=data_dir,
+)
+root, config, results, settings, data_dir = nb.root, nb.config, nb.results, nb.settings, nb.data_dir
+table_path, run_paths, array_paths = nb.table, nb.runs, nb.arrays
 # the protocol this notebook shows: the config's (or the pipeline's) settings, nothing hard-coded
 n_rows, gamma, seed = settings["n_rows"], settings["gamma"], settings["seed"]
 ours = dict(settings["methods"]["Ours"])
 p = 0.25 if 0.25 in settings["p"] else settings["p"][0]
 print(
     f"protocol: first {n_rows} rows, p in {settings['p']}, {settings['n_masks']} masks per p, "
-    f"gamma = {gamma}, Ours: {ours}; results from {results.relative_to(base)}/"
+    f"gamma = {gamma}, Ours: {ours}; results from {config['results']}/"
 )
 
 # %% [markdown]

@@ -48,17 +48,22 @@ from matplotlib import animation
 from nldr import tables
 from nldr.experiments import get
 from nldr.experiments.mocap import Reconstructions
-from nldr.experiments.notebook import load_config, need, repo_root
+from nldr.experiments.notebook import locate
 from nldr.nrsfm import center_per_frame
 
-root = repo_root()  # walks up from the working directory to the Snakefile
-config = load_config(root, configfile)
-base = Path(workdir) if workdir else root
-results = base / (results or config["results"])
-settings = settings or get("table3").settings(config)
-table_path = need(base / (table or results / "tables/table3.csv"), "table3")
-run_paths = [base / r for r in runs] or sorted((results / "runs/table3").glob("*.csv"))
-data_dir = base / (data_dir or config["data"]["dir"])
+nb = locate(  # the repository (walking up to its Snakefile), the config and this run's files
+    "table3",
+    configfile=configfile,
+    workdir=workdir,
+    results=results,
+    table=table,
+    runs=runs,
+    arrays=arrays,
+    settings=settings,
+    data_dir=data_dir,
+)
+root, config, results, settings, data_dir = nb.root, nb.config, nb.results, nb.settings, nb.data_dir
+table_path, run_paths, array_paths = nb.table, nb.runs, nb.arrays
 
 # %% [markdown]
 # ## Table 3
@@ -89,9 +94,7 @@ all_runs.groupby(["sequence", "method"])["seconds"].median().unstack().round(1)
 # change `n_frames` or `ours` there to explore); the pipeline's copies are `figures/fig1.{png,pdf,svg}`.
 
 # %%
-fig1_arrays = {
-    p.stem: np.load(p) for p in [base / a for a in arrays] or [r.with_suffix(".npz") for r in run_paths]
-}
+fig1_arrays = {p.stem: np.load(p) for p in array_paths}
 fig = get("table3").draw("fig1", all_runs, fig1_arrays, data_dir)
 
 # %% [markdown]

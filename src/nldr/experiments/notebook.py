@@ -14,10 +14,11 @@ import json
 import os
 import pickle
 import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["repo_root", "load_config", "merge_config", "need", "cached"]
+__all__ = ["repo_root", "load_config", "merge_config", "need", "cached", "locate", "Located"]
 
 _MARKERS = ("Snakefile", "config/config.yaml")
 
@@ -87,6 +88,59 @@ def need(path: str | os.PathLike, target: str) -> Path:
             '"config/quick.yaml" in the parameters cell)'
         )
     return path
+
+
+@dataclass
+class Located:
+    """Where a notebook's inputs are (see :func:`locate`); every path absolute."""
+
+    root: Path  # the repository (the folder holding the Snakefile)
+    config: dict  # config.yaml with the notebook's configfile laid over it
+    results: Path  # the results folder of that config
+    settings: dict  # the experiment's config block (as the pipeline ran it, when given)
+    table: Path  # the experiment's tidy CSV (checked to exist)
+    runs: list  # the per-job CSVs
+    arrays: list  # the per-job .npz files (those beside the CSVs unless given)
+    data_dir: Path  # the folder holding oil/ and nrsfm/
+
+
+def locate(
+    experiment: str,
+    *,
+    configfile: str = "",
+    workdir: str = "",
+    results: str = "",
+    table: str = "",
+    runs: Sequence[str] = (),
+    arrays: Sequence[str] = (),
+    settings: Mapping | None = None,
+    data_dir: str = "",
+) -> Located:
+    """The inputs of ``experiment``'s notebook from its parameters cell.
+
+    Run by the pipeline, the parameters name this run's files relative to ``workdir``; run by hand they
+    are empty and everything follows from the config: ``<results>/tables/<experiment>.csv``, every CSV
+    in ``<results>/runs/<experiment>/`` and the ``.npz`` beside each. The repository is found by walking
+    up to its ``Snakefile`` (:func:`repo_root`), so the notebook runs from any working directory.
+    A missing table raises FileNotFoundError naming the target that builds it (:func:`need`).
+    """
+    from . import get
+
+    root = repo_root()
+    config = load_config(root, configfile)
+    base = Path(workdir) if workdir else root
+    folder = base / (results or config["results"])
+    run_paths = [base / r for r in runs] or sorted((folder / "runs" / experiment).glob("*.csv"))
+    return Located(
+        root=root,
+        config=config,
+        results=folder,
+        settings=dict(settings) if settings else get(experiment).settings(config),
+        table=need(base / (table or folder / "tables" / f"{experiment}.csv"), experiment),
+        runs=run_paths,
+        arrays=[base / a for a in arrays] or [p.with_suffix(".npz") for p in run_paths],
+        data_dir=base / (data_dir or config["data"]["dir"]),
+    )
 
 
 def cached(
