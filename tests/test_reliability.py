@@ -115,8 +115,6 @@ def _assert_cut_short(workdir, *, strictly=True):
     if strictly:
         # the signal lands while a job runs; with the quick jobs now a few seconds each, the jobs of a
         # loaded machine may all have finished by the time Snakemake acts on it, but never the table
-        done = {p.name for p in (workdir / R / "runs/table3").glob("*.csv")}
-        assert len(done) <= 2 * len(quick_config()["table3"]["sequences"])
         assert not (workdir / R / "tables/table3.csv").exists()
 
 
