@@ -43,17 +43,8 @@ from IPython.display import Markdown, display
 from nldr import tables
 from nldr.experiments.notebook import locate
 
-nb = locate(  # the repository (walking up to its Snakefile), the config and this run's files
-    "out_of_sample",
-    configfile=configfile,
-    workdir=workdir,
-    results=results,
-    table=table,
-    runs=runs,
-    arrays=arrays,
-    settings=settings,
-    data_dir=data_dir,
-)
+# the repository (by its Snakefile), the config and this run's files
+nb = locate("out_of_sample", configfile, workdir, results, table, runs, arrays, settings, data_dir)
 root, results, settings, table_path, run_paths = nb.root, nb.results, nb.settings, nb.table, nb.runs
 
 # %% [markdown]

@@ -50,17 +50,8 @@ from IPython.display import Markdown, display
 from nldr import tables
 from nldr.experiments.notebook import locate
 
-nb = locate(  # the repository (walking up to its Snakefile), the config and this run's files
-    "selection_nrsfm",
-    configfile=configfile,
-    workdir=workdir,
-    results=results,
-    table=table,
-    runs=runs,
-    arrays=arrays,
-    settings=settings,
-    data_dir=data_dir,
-)
+# the repository (by its Snakefile), the config and this run's files
+nb = locate("selection_nrsfm", configfile, workdir, results, table, runs, arrays, settings, data_dir)
 root, config, results, settings, data_dir = nb.root, nb.config, nb.results, nb.settings, nb.data_dir
 table_path, run_paths, array_paths = nb.table, nb.runs, nb.arrays
 

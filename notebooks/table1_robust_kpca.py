@@ -51,17 +51,8 @@ from nldr.experiments.table1 import figure3_curves
 from nldr.plotting import figure3
 from nldr.robust_kpca import rank_penalty_threshold, shrink_eigenvalues
 
-nb = locate(  # the repository (walking up to its Snakefile), the config and this run's files
-    "table1",
-    configfile=configfile,
-    workdir=workdir,
-    results=results,
-    table=table,
-    runs=runs,
-    arrays=arrays,
-    settings=settings,
-    data_dir=data_dir,
-)
+# the repository (by its Snakefile), the config and this run's files
+nb = locate("table1", configfile, workdir, results, table, runs, arrays, settings, data_dir)
 root, config, results, settings, data_dir = nb.root, nb.config, nb.results, nb.settings, nb.data_dir
 table_path, run_paths, array_paths = nb.table, nb.runs, nb.arrays
 

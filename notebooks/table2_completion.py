@@ -64,17 +64,8 @@ from nldr.experiments.notebook import cached, locate
 from nldr.experiments.table2 import METHODS, PEER_ROWS, random_mask
 from nldr.regularizer import minimize_regularized
 
-nb = locate(  # the repository (walking up to its Snakefile), the config and this run's files
-    "table2",
-    configfile=configfile,
-    workdir=workdir,
-    results=results,
-    table=table,
-    runs=runs,
-    arrays=arrays,
-    settings=settings,
-    data_dir=data_dir,
-)
+# the repository (by its Snakefile), the config and this run's files
+nb = locate("table2", configfile, workdir, results, table, runs, arrays, settings, data_dir)
 root, config, results, settings, data_dir = nb.root, nb.config, nb.results, nb.settings, nb.data_dir
 table_path, run_paths, array_paths = nb.table, nb.runs, nb.arrays
 # the protocol this notebook shows: the config's (or the pipeline's) settings, nothing hard-coded

@@ -106,7 +106,6 @@ class Located:
 
 def locate(
     experiment: str,
-    *,
     configfile: str = "",
     workdir: str = "",
     results: str = "",
@@ -116,7 +115,8 @@ def locate(
     settings: Mapping | None = None,
     data_dir: str = "",
 ) -> Located:
-    """The inputs of ``experiment``'s notebook from its parameters cell.
+    """The inputs of ``experiment``'s notebook from its parameters cell (the arguments in the order of
+    the cell: ``locate(name, configfile, workdir, results, table, runs, arrays, settings, data_dir)``).
 
     Run by the pipeline, the parameters name this run's files relative to ``workdir``; run by hand they
     are empty and everything follows from the config: ``<results>/tables/<experiment>.csv``, every CSV
