@@ -31,21 +31,13 @@ from threadpoolctl import threadpool_limits
 
 from nldr.baselines import mean_impute
 from nldr.data_terms import MaskedLeastSquares
-from nldr.datasets import load_oil
+from nldr.datasets import load_oil_rows
 from nldr.experiments.table2 import random_mask
 from nldr.regularizer import minimize_regularized
 
 GAMMA, TAU = 0.075, 0.1
 SCHEDULE = {"center": False, "rho0": 1.0, "rho_growth": 10.0, "rho_max": 1e4}
 SEED = 2016
-
-
-def oil_rows(n: int, data_dir=None) -> np.ndarray:
-    """The first n rows of training, then validation, then test oil-flow data (n <= 3000)."""
-    X = np.vstack([load_oil(split, data_dir)[0] for split in ("train", "validation", "test")])
-    if not 0 < n <= X.shape[0]:
-        raise ValueError(f"n must lie in 1..{X.shape[0]}; got {n}")
-    return X[:n]
 
 
 def solve(X: np.ndarray, p: float, seed: int, options: dict) -> dict:
@@ -90,7 +82,7 @@ def main(argv=None) -> None:
     out.mkdir(parents=True, exist_ok=True)
     path = out / "scale.csv"
     for n in args.n:
-        X = oil_rows(n, args.data_dir)
+        X = load_oil_rows(n, args.data_dir)
         for p in args.p:
             for k in range(args.first_mask, args.first_mask + args.masks):
                 row = {"label": args.label, "options": json.dumps(options), **solve(X, p, SEED + k, options)}

@@ -34,20 +34,12 @@ from threadpoolctl import threadpool_limits
 
 from nldr.baselines import mean_impute, ppca_impute
 from nldr.data_terms import MaskedLeastSquares
-from nldr.datasets import load_oil
+from nldr.datasets import load_oil_rows
 from nldr.experiments.table2 import PEERS, fit_peer, random_mask
 from nldr.regularizer import minimize_regularized
 
 OURS = {"gamma": 0.075, "tau": 0.1, "center": False, "rho0": 1.0, "rho_growth": 10.0, "rho_max": 1e4}
 SEED = 2016
-
-
-def oil_rows(n: int, data_dir=None) -> np.ndarray:
-    """The first n rows of training, then validation, then test oil-flow data (n <= 3000)."""
-    X = np.vstack([load_oil(split, data_dir)[0] for split in ("train", "validation", "test")])
-    if not 0 < n <= X.shape[0]:
-        raise ValueError(f"n must lie in 1..{X.shape[0]}; got {n}")
-    return X[:n]
 
 
 def complete(method: str, W, mask, seed: int, landmarks: int):
@@ -88,7 +80,7 @@ def main(argv=None) -> None:
         old = pd.read_csv(path)
         done = set(zip(old["n"], old["p"], old["seed"], old["key"], strict=True))
     for n in args.n:
-        X = oil_rows(n, args.data_dir)
+        X = load_oil_rows(n, args.data_dir)
         for k in range(args.masks):
             seed = SEED + k
             mask = random_mask(X.shape, args.p, seed)

@@ -37,6 +37,7 @@ __all__ = [
     "verify",
     "verify_present",
     "load_oil",
+    "load_oil_rows",
     "MocapSequence",
     "load_mocap",
 ]
@@ -289,6 +290,17 @@ def load_oil(split: str = "train", data_dir=None) -> tuple[np.ndarray, np.ndarra
     if not np.allclose(onehot.sum(axis=1), 1.0):
         raise DataError(f"oil/Data{tag}Lbls.txt: rows must be one-hot (sum to 1)")
     return X, onehot.argmax(axis=1).astype(np.int64)
+
+
+def load_oil_rows(n: int, data_dir=None) -> np.ndarray:
+    """The first ``n`` oil-flow rows of the training, then validation, then test split.
+
+    Returns X, float array of shape (n, 12); ValueError unless 1 <= n <= 3000.
+    """
+    X = np.vstack([load_oil(split, data_dir)[0] for split in ("train", "validation", "test")])
+    if not 0 < n <= X.shape[0]:
+        raise ValueError(f"n must lie in 1..{X.shape[0]}; got {n}")
+    return X[:n]
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ from .. import paper as paper_numbers
 from .._validation import as_float_matrix
 from ..baselines import mean_impute, nearest_neighbour_impute, pkpca_impute, ppca_impute, rkpca_impute
 from ..data_terms import MaskedLeastSquares
-from ..datasets import load_oil
+from ..datasets import load_oil, load_oil_rows
 from ..model_selection import baseline_grid, select_imputer
 from ..regularizer import minimize_regularized
 from .base import Experiment, Job, JobOutput, summary_stats
@@ -411,8 +411,7 @@ class Table2All(Table2Full):
 
     def load(self, settings, data_dir) -> np.ndarray:
         """The first ``n_rows`` of the training, then validation, then test rows (3000 x 12 in all)."""
-        X = np.vstack([load_oil(split, data_dir)[0] for split in ("train", "validation", "test")])
-        return X[: settings["n_rows"]]
+        return load_oil_rows(settings["n_rows"], data_dir)
 
     def resources(self, config, job):
         return {"mem_mb": 4000, "runtime": 120}
