@@ -78,10 +78,10 @@ def test_jobs_follow_the_config(config):
     t1, t2, t3 = config["table1"], config["table2"], config["table3"]
     counts = {name: len(e.jobs(config)) for name, e in EXPERIMENTS.items()}
     assert counts["table1"] == len(t1["noise_std"]) * t1["n_draws"]
-    assert counts["table2"] == len(t2["p"]) * t2["n_masks"]
+    for name in ("table2", "table2_full", "table2_all"):  # one job per p and group of masks
+        s = EXPERIMENTS[name].settings(config)
+        assert counts[name] == len(t2["p"]) * -(-s["n_masks"] // s.get("masks_per_job", 1)), name
     assert counts["table3"] == len(t3["sequences"]) * (1 + t3["n_seeds"])
-    assert counts["table2_full"] == len(t2["p"]) * config["table2_full"]["n_masks"]
-    assert counts["table2_all"] == len(t2["p"]) * config["table2_all"]["n_masks"]
     # table2_all: Ours takes the block's extra solver options on top of table2's
     assert EXPERIMENTS["table2_all"].settings(config)["ours"] == config["table2_all"]["ours"]
     # an inheriting experiment takes its parent's keys unless it sets them
@@ -110,6 +110,36 @@ def test_unknown_names_are_reported_with_the_known_ones():
         get("table1").job(full_config(), "std9_seed1")
 
 
+def test_table2_rows_do_not_depend_on_how_masks_are_grouped_into_jobs(data_dir, monkeypatch):
+    """Seven masks as one job each, as groups of three (3 + 3 + 1) and as one job: the same masks,
+    seeds and rows (a peer limited to the first masks runs on exactly those)."""
+    import nldr.experiments.table2 as module
+
+    monkeypatch.setattr(
+        module,
+        "run_mask",
+        lambda X, **kw: pd.DataFrame(
+            {"p": [kw["p"]], "seed": [kw["seed"]], "method": ["Ours"], "sse": [1.0]}
+        ),
+    )
+    config = full_config()
+    config["table2"].update(n_rows=30, p=[0.1, 0.5], n_masks=7)
+    config["table2"]["peers"] = {"methods": ["KNNImputer"], "n_folds": 2, "masks": {"KNNImputer": 4}}
+    table2 = get("table2")
+    tables = {}
+    for per in (1, 3, 7):
+        config["table2"]["masks_per_job"] = per
+        jobs = table2.jobs(config)
+        assert len(jobs) == 2 * -(-7 // per)
+        assert len({job.id for job in jobs}) == len(jobs)
+        settings = table2.job_settings(config)
+        tables[per] = pd.concat([table2.run(job, settings, data_dir).rows for job in jobs], ignore_index=True)
+    assert list(tables[1]["seed"].drop_duplicates()) == [config["table2"]["seed"] + k for k in range(7)]
+    assert (tables[1]["method"] == "KNNImputer (CV)").sum() == 2 * 4
+    for per in (3, 7):
+        pd.testing.assert_frame_equal(tables[per].drop(columns="seconds"), tables[1].drop(columns="seconds"))
+
+
 def test_table2_peers_follow_the_paper_rows_only_on_their_first_masks(data_dir, monkeypatch):
     """The peers add rows after the paper's (knobs by CV), a costly one only on the first masks per p,
     and leave the paper's rows as run_mask returns them (stubbed here: the peers are under test)."""
@@ -131,7 +161,7 @@ def test_table2_peers_follow_the_paper_rows_only_on_their_first_masks(data_dir, 
     monkeypatch.setattr(module, "run_mask", lambda X, **kw: paper_rows.assign(seed=kw["seed"]))
     config = full_config()
     t2 = config["table2"]
-    t2.update(n_rows=30, p=[0.1], n_masks=2)
+    t2.update(n_rows=30, p=[0.1], n_masks=2, masks_per_job=1)
     t2["peers"] = {
         "methods": ["KNNImputer", "IterativeImputer", "missForest"],
         "n_folds": 2,

@@ -252,7 +252,7 @@ def test_every_job_is_planned_with_each_profile(tmp_path, profile):
     t1, t2, t3, t4 = config["table1"], config["table2"], config["table3"], config["table4"]
     expected = {
         "run_job": len(t1["noise_std"]) * t1["n_draws"]
-        + len(t2["p"]) * t2["n_masks"]
+        + len(t2["p"]) * -(-t2["n_masks"] // t2.get("masks_per_job", 1))
         + len(t3["sequences"]) * (1 + t3["n_seeds"])
         + len(t4["sequences"]) * (1 + t4["n_seeds"]),
         "gather_table": 4,
