@@ -7,7 +7,8 @@ dependency) as the reference; it returns a :class:`TNHResult`.
 
 Unknown cameras (Table 4): :func:`initialize_cameras` (rigid factorisation,
 :mod:`nldr.nrsfm.factorization`), :func:`tnh_with_camera_refinement` and :func:`tune_tau`
-(:mod:`nldr.nrsfm.unknown_cameras`) on top of the camera LM and the shape/camera alternation
+(:mod:`nldr.nrsfm.unknown_cameras`; the kernel stage with cameras and shapes optimised jointly in
+:mod:`nldr.nrsfm.joint_kernel`) on top of the camera LM and the shape/camera alternation
 (:mod:`nldr.nrsfm.camera_refinement`, :mod:`nldr.nrsfm.rotations`); evaluation up to the global gauge
 by :func:`e3d` (``align=True``) and :func:`camera_error`.
 
@@ -23,6 +24,7 @@ Every solver result derives from :class:`nldr.result.SolverResult` (``x``, ``fun
 
 from .camera_refinement import CameraShapeResult, refine_cameras_and_shapes
 from .factorization import initialize_cameras
+from .joint_kernel import JointKernelResult, joint_energy, kernel_joint_cameras_shapes
 from .layout import (
     cameras_from_stack,
     cameras_to_stack,
@@ -78,6 +80,9 @@ __all__ = [
     "CameraShapeResult",
     "tnh_with_camera_refinement",
     "kernel_with_camera_refinement",
+    "kernel_joint_cameras_shapes",
+    "joint_energy",
+    "JointKernelResult",
     "tune_tau",
     "TauSearchResult",
     "visibility_folds",

@@ -221,7 +221,10 @@ def kernel_with_camera_refinement(
     observed tracks almost exactly at any cameras, so the camera LM, which sees only the reprojection
     error, has next to nothing to decrease; the regularizer's pull on the cameras never reaches them
     in this block-coordinate scheme (measured: about 1e-4 degree per camera step on Table 4's
-    sequences). Returns its :class:`~nldr.nrsfm.CameraShapeResult` (shapes ``x``, cameras ``R``).
+    sequences). :func:`~nldr.nrsfm.joint_kernel.kernel_joint_cameras_shapes` moves cameras and depths
+    together and reaches a lower energy (Table 4's default since issue 17, config
+    ``table4.kernel_cameras``); this alternation is kept as ``kernel_cameras: alternate``. Returns its
+    :class:`~nldr.nrsfm.CameraShapeResult` (shapes ``x``, cameras ``R``).
     """
     state = {"X": X_start}
 
