@@ -66,10 +66,9 @@ def test_factor_projection_maps_training_rows_onto_their_coordinates_and_matches
     """The test-point map applied to a training point's own kernel row returns its training
     coordinates (K U = U diag(lam)); for the closed form they are the columns of C, as in the
     RobustKernelPCA estimator (same eigendecomposition, so equal to rounding)."""
+    from nldr.experiments.table1 import project_points
     from nldr.kernels import center_cross_kernel
     from nldr.robust_kpca import RobustKernelPCA, shrink_eigenvalues
-
-    from nldr.experiments.table1 import project_points
 
     X, X_new = rng.normal(size=(60, 4)), rng.normal(size=(25, 4))
     K = rbf_kernel(X, 0.3)
@@ -108,7 +107,16 @@ def test_test_manifold_error_is_bounded_by_the_first_dropped_eigenvalue(two_moon
     (Xtr, ytr), (Xte, yte) = two_moons_like
     gamma = 1.0
     runs = run_noise_level(
-        Xtr, ytr, Xte, yte, noise_std=0.0, seed=0, gamma=gamma, max_rank=40, taus=[1e-3], projection="eigenvectors"
+        Xtr,
+        ytr,
+        Xte,
+        yte,
+        noise_std=0.0,
+        seed=0,
+        gamma=gamma,
+        max_rank=40,
+        taus=[1e-3],
+        projection="eigenvectors",
     )
     K = rbf_kernel(Xtr, gamma)
     lam = np.linalg.eigvalsh(center_kernel(K))[::-1]
@@ -120,4 +128,6 @@ def test_test_manifold_error_is_bounded_by_the_first_dropped_eigenvalue(two_moon
         bound = lam[k] * c.sum() / np.sum(K_test**2)
         assert 0 < best.loc[method, "test_manifold_error"] <= bound * (1 + 1e-9)
     with pytest.raises(ValueError, match="projection"):
-        run_noise_level(Xtr, ytr, Xte, yte, noise_std=0.1, seed=0, gamma=1.0, max_rank=5, taus=[1.0], projection="x")
+        run_noise_level(
+            Xtr, ytr, Xte, yte, noise_std=0.1, seed=0, gamma=1.0, max_rank=5, taus=[1.0], projection="x"
+        )

@@ -101,7 +101,9 @@ def project_points(U, lam, K_test, scale, projection: str = "factor"):
         scale = np.ones(k)
     train, test = U[:, :k] * scale, K_test @ U[:, :k] * (scale / lam[:k])
     if projection == "normalised":
-        train, test = (Z / np.maximum(np.linalg.norm(Z, axis=1, keepdims=True), 1e-300) for Z in (train, test))
+        train, test = (
+            Z / np.maximum(np.linalg.norm(Z, axis=1, keepdims=True), 1e-300) for Z in (train, test)
+        )
     return train, test
 
 

@@ -168,11 +168,11 @@ def run_sequence(
     max_inner : int, optional
         Per-stage iteration limit of the regularizer (its default when None).
     tol, gtol, stage_tol : float, optional
-        Stopping tolerances of the regularizer's L-BFGS stages (:func:`~nldr.regularizer.minimize_regularized`;
-        its defaults when None). Its ``tol`` is relative to ``max(|E|, 1)``, so with the energies of
-        these sequences (about 1e-3: tau = 1e-4 times the trace norm of K^(1/2)) it acts as an
-        absolute test a thousand times looser than its nominal value
-        (docs/REPRODUCTION.md#table-3-solver).
+        Stopping tolerances of the regularizer's L-BFGS stages
+        (:func:`~nldr.regularizer.minimize_regularized`; its defaults when None). Its ``tol`` is
+        relative to ``max(|E|, 1)``, so with the energies of these sequences (about 1e-3: tau = 1e-4
+        times the trace norm of K^(1/2)) it acts as an absolute test a thousand times looser than
+        its nominal value (docs/REPRODUCTION.md#table-3-solver).
     tnh_options : mapping, optional
         ``solver`` (default "ADMM"), ``eps`` (SCS's eps_abs = eps_rel) and further solver options for
         :func:`~nldr.nrsfm.trace_norm_heuristic` (``ADMM``: its options; else a cvxpy conic solver
@@ -289,8 +289,6 @@ def run_sequence(
         ground_truth=X_gt,
         results=results,
     )
-
-
 
 
 class Table3(MocapExperiment):
