@@ -60,3 +60,74 @@ def test_run_validates_its_arguments(two_moons_like):
         run_noise_level(Xtr, ytr, Xte, yte, **{**kwargs, "max_rank": 0})
     with pytest.raises(ValueError, match="X_test"):
         run_noise_level(Xtr, ytr, Xte[:, :2], yte, **kwargs)
+
+
+def test_factor_projection_maps_training_rows_onto_their_coordinates_and_matches_the_estimator(rng):
+    """The test-point map applied to a training point's own kernel row returns its training
+    coordinates (K U = U diag(lam)); for the closed form they are the columns of C, as in the
+    RobustKernelPCA estimator (same eigendecomposition, so equal to rounding)."""
+    from nldr.experiments.table1 import project_points
+    from nldr.kernels import center_cross_kernel
+    from nldr.robust_kpca import RobustKernelPCA, shrink_eigenvalues
+
+    X, X_new = rng.normal(size=(60, 4)), rng.normal(size=(25, 4))
+    K = rbf_kernel(X, 0.3)
+    Kc = center_kernel(K)
+    lam, U = np.linalg.eigh(Kc)
+    lam, U = lam[::-1], U[:, ::-1]
+    l = shrink_eigenvalues(lam, 0.5, 1.0)
+    k = int(np.count_nonzero(l))
+    for projection in ("factor", "eigenvectors", "whitened"):
+        train, again = project_points(U, lam, Kc, l[:k], projection)
+        np.testing.assert_allclose(again, train, rtol=0, atol=1e-9)
+    K_new = center_cross_kernel(rbf_kernel(X_new, 0.3, X), K.mean(axis=0))
+    train, test = project_points(U, lam, K_new, l[:k], "factor")
+    est = RobustKernelPCA(gamma=0.3, tau=0.5, rho=1.0, center=True, eigensolver="full")
+    np.testing.assert_allclose(np.abs(est.fit_transform(X)), np.abs(train), rtol=0, atol=1e-10)
+    np.testing.assert_allclose(np.abs(est.transform(X_new)), np.abs(test), rtol=0, atol=1e-10)
+    # eigenvectors: KPCA's coordinates on the same subspace; whitened: unit variance over training
+    eig_train, _ = project_points(U, lam, K_new, l[:k], "eigenvectors")
+    np.testing.assert_allclose(eig_train.T @ eig_train, np.diag(lam[:k]), atol=1e-10)
+    white_train, _ = project_points(U, lam, K_new, l[:k], "whitened")
+    np.testing.assert_allclose(white_train.T @ white_train, np.eye(k), atol=1e-10)
+    norm_train, norm_test = project_points(U, lam, K_new, l[:k], "normalised")
+    np.testing.assert_allclose(np.linalg.norm(np.vstack([norm_train, norm_test]), axis=1), 1.0, rtol=1e-12)
+    with pytest.raises(ValueError, match="projection"):
+        project_points(U, lam, K_new, l[:k], "bogus")
+
+
+def test_test_manifold_error_is_bounded_by_the_first_dropped_eigenvalue(two_moons_like):
+    """Without noise, the joint centred kernel of [train; test] is PSD, so a test row is
+    k = K^(1/2) v with ||v||^2 <= c (its centred self-kernel), and the part of k outside the kept
+    eigenvectors has squared norm sum_dropped lam_i v_i^2 <= lam_(k+1) c. With KPCA's coordinates
+    (the "eigenvectors" projection) the kept part is reproduced exactly, so the test manifold error is
+    at most lam_(k+1) sum_t c_t / ||K_test||^2."""
+    from nldr.kernels import center_cross_kernel
+
+    (Xtr, ytr), (Xte, yte) = two_moons_like
+    gamma = 1.0
+    runs = run_noise_level(
+        Xtr,
+        ytr,
+        Xte,
+        yte,
+        noise_std=0.0,
+        seed=0,
+        gamma=gamma,
+        max_rank=40,
+        taus=[1e-3],
+        projection="eigenvectors",
+    )
+    K = rbf_kernel(Xtr, gamma)
+    lam = np.linalg.eigvalsh(center_kernel(K))[::-1]
+    K_test = center_cross_kernel(rbf_kernel(Xte, gamma, Xtr), K.mean(axis=0))
+    c = 1.0 - 2.0 * rbf_kernel(Xte, gamma, Xtr).mean(axis=1) + K.mean()
+    best = runs[runs["best"]].set_index("method")
+    for method in ("KPCA", "CFS"):
+        k = int(best.loc[method, "rank"])
+        bound = lam[k] * c.sum() / np.sum(K_test**2)
+        assert 0 < best.loc[method, "test_manifold_error"] <= bound * (1 + 1e-9)
+    with pytest.raises(ValueError, match="projection"):
+        run_noise_level(
+            Xtr, ytr, Xte, yte, noise_std=0.1, seed=0, gamma=1.0, max_rank=5, taus=[1.0], projection="x"
+        )
