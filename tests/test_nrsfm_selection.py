@@ -118,7 +118,15 @@ def test_kernel_scores_are_the_hand_computed_fold_solves_and_the_refit_is_the_so
     W, R, _, mask = synthetic_sequence(F=12, P=7, missing=0.3)
     taus, multiples = [1e-4, 1e-3], [1.0]
     sel = select_kernel(
-        W, mask, R=R, taus=taus, width_multiples=multiples, n_folds=2, warm_start=False, **SCHEDULE
+        W,
+        mask,
+        R=R,
+        taus=taus,
+        width_multiples=multiples,
+        n_folds=2,
+        warm_start=False,
+        rule="min",
+        **SCHEDULE,
     )
     folds = visibility_folds(mask, 2, random_state=0)
     for tau in taus:
@@ -146,6 +154,44 @@ def test_kernel_scores_are_the_hand_computed_fold_solves_and_the_refit_is_the_so
     assert sel.gamma_ == sel.width_multiple_ * d_med_width(X0)
 
 
+def test_reference_rule_leaves_the_reference_only_for_a_candidate_better_by_one_paired_se():
+    W, R, _, mask = synthetic_sequence(F=10, P=6, missing=0.2, noise=0.01, seed=0)
+    kw = dict(R=R, taus=[1e-4, 1e-3], width_multiples=[0.5, 1.0], n_folds=4, **SCHEDULE)
+    sel = select_kernel(W, mask, rule="reference", reference=(1e-4, 1.0), **kw)
+    cv, scores = sel.cv_results_, sel.fold_scores_.to_numpy()
+    assert scores.shape == (4, len(cv))
+    np.testing.assert_allclose(scores.mean(axis=0), cv["mean_test_error"], rtol=1e-12)
+    ref = int(np.flatnonzero((cv["tau"] == 1e-4) & (cv["width_multiple"] == 1.0))[0])
+    diff = scores - scores[:, [ref]]
+    se = diff.std(axis=0, ddof=1) / 2.0  # sqrt(4 folds)
+    np.testing.assert_allclose(cv["mean_diff_reference"], diff.mean(axis=0), rtol=1e-12, atol=1e-300)
+    np.testing.assert_allclose(cv["se_diff_reference"], se, rtol=1e-12, atol=1e-300)
+    better = cv["active"].to_numpy() & (diff.mean(axis=0) + se < 0)
+    expected = ref if not better.any() else np.flatnonzero(better)[np.argmin(cv["mean_test_error"][better])]
+    assert (sel.tau_, sel.width_multiple_) == (cv["tau"][expected], cv["width_multiple"][expected])
+    # the same folds and scores as "min", which takes the smallest mean among the active candidates
+    plain = select_kernel(W, mask, rule="min", **kw)
+    np.testing.assert_array_equal(plain.fold_scores_.to_numpy(), scores)
+    active = cv["active"].to_numpy()
+    best = np.flatnonzero(active)[np.argmin(cv["mean_test_error"][active])]
+    assert (plain.tau_, plain.width_multiple_) == (cv["tau"][best], cv["width_multiple"][best])
+
+
+def test_a_tau_that_leaves_the_start_in_place_is_inactive_and_never_chosen():
+    # tau = 1e-12: the regularizer's gradient is below L-BFGS's gtol at the TNH start, the solve
+    # returns its start, and the hold-out score is TNH's, not the kernel method's
+    W, R, _, mask = synthetic_sequence(F=12, P=7, missing=0.3)
+    kw = dict(R=R, taus=[1e-12, 1e-3], width_multiples=[1.0], n_folds=2, rule="min", **SCHEDULE)
+    sel = select_kernel(W, mask, **kw)
+    cv = sel.cv_results_.set_index("tau")
+    assert cv.loc[1e-12, "max_move"] < 1e-3 <= cv.loc[1e-3, "max_move"]
+    assert not cv.loc[1e-12, "active"] and cv.loc[1e-3, "active"]
+    assert sel.tau_ == 1e-3
+    # with min_move = 0 every candidate is eligible: the smaller mean score wins
+    anyone = select_kernel(W, mask, min_move=0.0, **kw)
+    assert anyone.tau_ == cv["mean_test_error"].idxmin()
+
+
 def test_kernel_selection_repeats_with_the_seed_and_rejects_bad_input():
     W, R, _, mask = synthetic_sequence(F=10, P=6, missing=0.2)
     kw = dict(R=R, taus=[1e-4, 1e-3], width_multiples=[0.5, 1.0], n_folds=2, random_state=3, **SCHEDULE)
@@ -159,6 +205,12 @@ def test_kernel_selection_repeats_with_the_seed_and_rejects_bad_input():
         select_kernel(W, mask, R=R, width_rule="d_min")
     with pytest.raises(ValueError, match="tau"):
         select_kernel(W, mask, R=R, tau=1e-4)
+    with pytest.raises(ValueError, match="rule"):
+        select_kernel(W, mask, R=R, rule="one_se")
+    with pytest.raises(ValueError, match="reference"):
+        select_kernel(W, mask, R=R, taus=[1e-3], reference=(1e-4, 1.0))
+    with pytest.raises(ValueError, match="min_move"):
+        select_kernel(W, mask, R=R, min_move=-1.0)
 
 
 # --------------------------------------------------------------------------------------------------

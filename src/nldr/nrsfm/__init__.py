@@ -25,6 +25,7 @@ Every solver result derives from :class:`nldr.result.SolverResult` (``x``, ``fun
 from .camera_refinement import CameraShapeResult, refine_cameras_and_shapes
 from .factorization import initialize_cameras
 from .joint_kernel import JointKernelResult, joint_energy, kernel_joint_cameras_shapes
+from .kernel_selection import KernelSelection, select_kernel
 from .layout import (
     cameras_from_stack,
     cameras_to_stack,
@@ -43,10 +44,8 @@ from .metrics import (
 )
 from .reprojection import OrthographicReprojection
 from .selection import (
-    KernelSelection,
     TNHTauSelection,
     holdout_reprojection_error,
-    select_kernel,
     select_tnh_tau,
     visibility_folds,
 )

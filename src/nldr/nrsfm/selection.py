@@ -8,26 +8,17 @@ its image coordinates), the method reconstructs from the rest, and the fold's sc
 squared reprojection error of the hidden points, ``mean ||w_f(x_j) - R_f s_f(x_j)||^2`` over the
 hidden (f, j), with the frame's camera R_f and the reconstructed 3D point s_f(x_j) (squared unit of
 the tracks). The score is invariant to the global gauge (R_f Q, Q^T s), so estimated cameras need no
-alignment. The candidate with the smallest mean score over the folds wins and is refitted on every
-observed point. Nothing here sees the 3D ground truth.
+alignment. The chosen candidate (for TNH's tau: the smallest mean score over the folds) is refitted
+on every observed point. Nothing here sees the 3D ground truth.
 
 - :func:`visibility_folds`: the hidden points of each fold (same seed, same folds).
 - :func:`select_tnh_tau`: TNH's tau with cameras estimated (Table 4's pipeline: rigid factorisation,
   then TNH alternating with the camera LM, every tau from the rigid cameras, as the oracle search of
   :func:`~nldr.nrsfm.unknown_cameras.tune_tau` does). Each fold re-estimates the rigid cameras from
   its own training points.
-- :func:`select_kernel`: the kernel regularizer's tau and width (a multiple of the paper's d_med or
-  d_max rule, computed on the start shapes). With known cameras (Table 3) every fold starts from the
-  exact-fit TNH of its training points; after :func:`select_tnh_tau` (Table 4) every fold starts from
-  that fold's TNH at the selected tau, and the refit alternates the kernel shape step with the camera
-  LM from the selected TNH, as Table 4's kernel stage does. The fold solves keep the fold's TNH
-  cameras fixed: Table 4's kernel stage moves the cameras by less than 0.01 degrees
-  (docs/REPRODUCTION.md#table-4-tnh), so refining them in every fold would only multiply the cost.
+- The kernel method's tau and width: :mod:`nldr.nrsfm.kernel_selection` (same folds and score).
 
-Cost. The kernel candidates of one (fold, width) pair are solved along tau from the smallest up, each
-after the first warm-started from its neighbour with the last penalty stage only (the argument of
-:mod:`nldr.model_selection`); ``warm_start=False`` solves each from the fold's start with the full
-schedule. TNH's taus are always cold starts from the rigid cameras (a continuation in tau lands in a
+Cost. TNH's taus are always cold starts from the rigid cameras (a continuation in tau lands in a
 different basin, docs/REPRODUCTION.md#table-4-tnh). Folds run in parallel with ``n_jobs``.
 
 Layouts as in :mod:`nldr.nrsfm.layout`: tracks W2d (F, 2P), shapes X (F, 3P), cameras R (F, 2, 3),
@@ -37,7 +28,6 @@ visibility masks (F, P), True where observed.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,35 +36,21 @@ from threadpoolctl import threadpool_limits
 
 from .._cv import positive_grid, run_jobs, summarise_folds
 from .._validation import check_count, check_positive
-from ..kernels import d_max_width, d_med_width
-from ..regularizer import minimize_regularized
 from .camera_refinement import CameraShapeResult
 from .factorization import initialize_cameras
-from .reprojection import OrthographicReprojection, check_cameras, check_tracks
-from .tnh import trace_norm_heuristic
-from .unknown_cameras import kernel_with_camera_refinement, tnh_with_camera_refinement
+from .reprojection import check_tracks
+from .unknown_cameras import tnh_with_camera_refinement
 
 __all__ = [
     "DEFAULT_TNH_TAUS",
-    "DEFAULT_KERNEL_TAUS",
-    "WIDTH_MULTIPLES",
-    "WIDTH_RULES",
     "visibility_folds",
     "holdout_reprojection_error",
     "TNHTauSelection",
     "select_tnh_tau",
-    "KernelSelection",
-    "select_kernel",
 ]
 
 #: TNH tau grid (unit of the tracks squared): 7 log-spaced values over Table 4's search interval [0.1, 100].
 DEFAULT_TNH_TAUS = tuple(float(t) for t in np.logspace(-1, 2, 7))
-#: Kernel tau grid: the paper's 1e-4 and one decade either side.
-DEFAULT_KERNEL_TAUS = (1e-5, 1e-4, 1e-3)
-#: Kernel widths as multiples of the width rule's gamma (0.5: wider kernel, 2: narrower).
-WIDTH_MULTIPLES = (0.5, 1.0, 2.0)
-#: The paper's width rules: name -> gamma of the RBF kernel from shapes as rows.
-WIDTH_RULES: dict[str, Callable[[np.ndarray], float]] = {"d_max": d_max_width, "d_med": d_med_width}
 
 
 # --------------------------------------------------------------------------------------------------
@@ -292,208 +268,3 @@ def select_tnh_tau(
     k = int(np.flatnonzero(taus == tau)[0])
     fold_results = [results[k] for _, results in per_fold]
     return TNHTauSelection(tau, cv, result, R0, folds, fold_results, refit_time)
-
-
-# --------------------------------------------------------------------------------------------------
-# The kernel regularizer's tau and width (Tables 3 and 4)
-# --------------------------------------------------------------------------------------------------
-
-
-@dataclass(repr=False)
-class KernelSelection:
-    """Outcome of :func:`select_kernel`.
-
-    Attributes
-    ----------
-    tau_ : float
-        The chosen trace-norm weight.
-    width_multiple_ : float
-        The chosen multiple of the width rule's gamma.
-    gamma_ : float
-        ``width_multiple_`` times the rule on the refit's start shapes (1 / unit of the tracks squared).
-    cv_results_ : DataFrame
-        One row per candidate, by width multiple then tau: ``tau, width_multiple, mean_test_error``
-        (mean squared hidden reprojection error, unit of the tracks squared), ``std_test_error``,
-        ``fit_time`` (mean CPU seconds per fold solve; warm-started candidates are cheaper).
-    result_ : RegularizerResult or CameraShapeResult
-        The refit on every observed point: the regularizer with the known cameras, or (after
-        :func:`select_tnh_tau`) its alternation with the camera LM, which also has cameras ``R``.
-    folds_ : list of bool arrays, shape (F, P)
-    start_ : (R, X)
-        Cameras (F, 2, 3) and shapes (F, 3P) the refit started from.
-    refit_time_ : float
-        CPU seconds of the refit's kernel solve (or alternation) alone: the cost of one solve.
-    """
-
-    tau_: float
-    width_multiple_: float
-    gamma_: float
-    cv_results_: pd.DataFrame
-    result_: object
-    folds_: list
-    start_: tuple
-    refit_time_: float
-
-    def __repr__(self) -> str:
-        return (
-            f"KernelSelection(tau_={self.tau_:.4g}, width_multiple_={self.width_multiple_:g}, "
-            f"gamma_={self.gamma_:.4g}, candidates={len(self.cv_results_)})"
-        )
-
-
-def _kernel_fold(W2d, train, hidden, R, X_start, rule, multiples, taus, warm_start, options):
-    with threadpool_limits(1):
-        term = OrthographicReprojection(W2d, R, train)
-        rho_max = options.get("rho_max", 1e4)
-        base_gamma = WIDTH_RULES[rule](X_start)
-        rows = []
-        for m in multiples:
-            previous = None
-            for tau in taus:
-                start = time.process_time()
-                if warm_start and previous is not None:
-                    stage = {**options, "rho0": rho_max, "rho_max": rho_max}
-                    res = minimize_regularized(term, previous, gamma=m * base_gamma, tau=float(tau), **stage)
-                else:
-                    res = minimize_regularized(term, X_start, gamma=m * base_gamma, tau=float(tau), **options)
-                previous = res.x
-                error = holdout_reprojection_error(W2d, hidden, R, res.x)
-                rows.append(
-                    {
-                        "tau": float(tau),
-                        "width_multiple": float(m),
-                        "test_error": error,
-                        "fit_time": time.process_time() - start,
-                    }
-                )
-        return rows
-
-
-def _known_camera_start(W2d, R, train, tnh_options):
-    with threadpool_limits(1):
-        return trace_norm_heuristic(W2d, R, train, **tnh_options).x
-
-
-def select_kernel(
-    W2d,
-    mask=None,
-    *,
-    R=None,
-    tnh: TNHTauSelection | None = None,
-    taus=None,
-    width_multiples=None,
-    width_rule: str = "d_med",
-    n_folds: int = 3,
-    holdout_fraction: float | None = None,
-    random_state=0,
-    warm_start: bool = True,
-    tnh_options: Mapping | None = None,
-    X_start=None,
-    camera_options: Mapping | None = None,
-    n_jobs: int = 1,
-    **regularizer_options,
-) -> KernelSelection:
-    """Choose the kernel regularizer's tau and width for NRSfM by hold-out reprojection error.
-
-    Give exactly one of ``R`` (known cameras, Table 3) or ``tnh`` (a :func:`select_tnh_tau` result,
-    Table 4). Candidate gammas are ``width_multiples`` times the ``width_rule`` on each fold's start
-    shapes, so the chosen quantity is the multiple; the refit applies it to its own start.
-
-    Parameters
-    ----------
-    W2d : array, shape (F, 2P)
-        Centred image tracks as rows.
-    mask : bool array, shape (F, P), optional
-        Visibility; default all observed. With ``tnh``, must be the mask it was selected on.
-    R : array, shape (F, 2, 3), optional
-        Known cameras. Each fold (and the refit) starts from the exact-fit TNH of its training points
-        (:func:`~nldr.nrsfm.trace_norm_heuristic` with ``tnh_options``).
-    tnh : TNHTauSelection, optional
-        Unknown cameras: its folds are reused, each fold starts from that fold's TNH (cameras and shapes)
-        at the selected tau and keeps those cameras; the refit starts from ``tnh.result_`` and
-        alternates with the camera LM (:func:`kernel_with_camera_refinement`, ``camera_options``:
-        ``max_outer``, ``tol``).
-    taus : sequence of float > 0, optional
-        Default :data:`DEFAULT_KERNEL_TAUS`.
-    width_multiples : sequence of float > 0, optional
-        Default :data:`WIDTH_MULTIPLES`.
-    width_rule : {"d_med", "d_max"}, default "d_med"
-        The paper's rule the multiples scale (:data:`WIDTH_RULES`).
-    n_folds, holdout_fraction, random_state
-        Folds of :func:`visibility_folds` (known cameras only; ``tnh`` brings its own).
-    warm_start : bool, default True
-        Solve each (fold, width) along tau, smallest first, warm-starting with the last penalty stage.
-    tnh_options : mapping, optional
-        Options of the known-camera TNH (default: exact fit by ADMM).
-    X_start : array, shape (F, 3P), optional
-        With ``R``: the refit's start, the TNH on every observed point with ``tnh_options``, when the
-        caller has it already (default: computed here).
-    n_jobs : int >= 1
-        Processes over the folds.
-    **regularizer_options
-        Passed to :func:`~nldr.regularizer.minimize_regularized` (``rho0, rho_growth, rho_max, center,
-        max_inner, ...``) in the folds and the refit.
-
-    Returns
-    -------
-    KernelSelection
-        Ties go to the first row of ``cv_results_``.
-    """
-    W, mask = check_tracks(W2d, mask)
-    if (R is None) == (tnh is None):
-        raise ValueError("give exactly one of R (known cameras) or tnh (a select_tnh_tau result)")
-    if width_rule not in WIDTH_RULES:
-        raise ValueError(f"width_rule must be one of {tuple(WIDTH_RULES)}; got {width_rule!r}")
-    for key in ("gamma", "tau"):
-        if key in regularizer_options:
-            raise ValueError(f"regularizer option {key!r} is set by select_kernel; remove it")
-    n_jobs = check_count(n_jobs, "n_jobs")
-    taus = positive_grid(DEFAULT_KERNEL_TAUS if taus is None else taus, "taus")
-    multiples = positive_grid(
-        WIDTH_MULTIPLES if width_multiples is None else width_multiples, "width_multiples"
-    )
-    W2d = W
-    if R is not None:
-        R = check_cameras(R, mask.shape[0])
-        tnh_options = dict(tnh_options or {})
-        folds = visibility_folds(mask, n_folds, random_state, holdout_fraction=holdout_fraction)
-        starts = run_jobs([(_known_camera_start, (W2d, R, mask & ~h, tnh_options)) for h in folds], n_jobs)
-        fold_cameras = [R] * len(folds)
-    else:
-        if tnh.folds_[0].shape != mask.shape or np.any(tnh.folds_[0] & ~mask):
-            raise ValueError("tnh was selected on another mask; pass the mask of select_tnh_tau")
-        folds = tnh.folds_
-        starts = [res.x for res in tnh.fold_results_]
-        fold_cameras = [res.R for res in tnh.fold_results_]
-    args = [
-        (W2d, mask & ~h, h, Rk, Xk, width_rule, multiples, taus, warm_start, regularizer_options)
-        for h, Rk, Xk in zip(folds, fold_cameras, starts, strict=True)
-    ]
-    rows = [row for fold in run_jobs([(_kernel_fold, a) for a in args], n_jobs) for row in fold]
-    cv = summarise_folds(rows, ["width_multiple", "tau"])[
-        ["tau", "width_multiple", "mean_test_error", "std_test_error", "fit_time"]
-    ]
-    best = int(np.argmin(cv["mean_test_error"].to_numpy()))
-    tau, multiple = float(cv["tau"].iloc[best]), float(cv["width_multiple"].iloc[best])
-    if R is not None:
-        if X_start is None:
-            X0 = _known_camera_start(W2d, R, mask, tnh_options)
-        else:
-            X0 = np.asarray(X_start, dtype=np.float64)
-            if X0.shape != (mask.shape[0], 3 * mask.shape[1]):
-                raise ValueError(f"X_start must have shape (F, 3P) = {(mask.shape[0], 3 * mask.shape[1])}")
-        gamma = multiple * WIDTH_RULES[width_rule](X0)
-        begin = time.process_time()
-        result = minimize_regularized(
-            OrthographicReprojection(W2d, R, mask), X0, gamma=gamma, tau=tau, **regularizer_options
-        )
-        start = (R, X0)
-    else:
-        R0, X0 = tnh.result_.R, tnh.result_.x
-        gamma = multiple * WIDTH_RULES[width_rule](X0)
-        begin = time.process_time()
-        result = kernel_with_camera_refinement(
-            W2d, mask, R0, X0, gamma=gamma, tau=tau, **dict(camera_options or {}), **regularizer_options
-        )
-        start = (R0, X0)
-    return KernelSelection(tau, multiple, gamma, cv, result, folds, start, time.process_time() - begin)
