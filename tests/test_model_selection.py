@@ -325,3 +325,32 @@ def test_verbose_reports_every_candidate_solve_and_changes_nothing(capsys):
     lines = capsys.readouterr().out.splitlines()
     assert sum("hold-out error" in line for line in lines) == 2 * 3
     assert any(f"chose {sel.best_params_}" in line for line in lines)
+
+
+def test_fold_landmarks_score_the_nystroem_fold_solves_by_hand_and_keep_the_refit_exact():
+    _, W, mask = denoising_problem(n=25, d=5)
+    taus, gamma = [0.1, 1.0], median_gamma(W, mask)
+    common = {"taus": taus, "gammas": [gamma], "n_folds": 2, "holdout": None, "rule": "min",
+              "warm_start": False, "stop_factor": None}
+    sel = select_regularizer(W, mask, fold_landmarks=10, **common)
+    folds = holdout_folds(mask, 2, random_state=0)
+    for tau in taus:
+        errors = [fold_error(W, mask, h, gamma, tau, tol=1e-7, gtol=1e-4, landmarks=10) for h in folds]
+        exact = [fold_error(W, mask, h, gamma, tau, tol=1e-7, gtol=1e-4) for h in folds]
+        row = sel.cv_results_[sel.cv_results_["tau"] == tau].iloc[0]
+        assert row["mean_test_error"] == pytest.approx(np.mean(errors), rel=1e-12)
+        assert np.mean(errors) != np.mean(exact)  # the option reaches the fold solves
+    refit = minimize_regularized(
+        MaskedLeastSquares(W, mask), mean_impute(W, mask), gamma=sel.gamma_, tau=sel.tau_,
+        isolation_guard=True,
+    )
+    np.testing.assert_array_equal(sel.result_.x, refit.x)  # the refit is the exact solve
+    # landmarks >= n is the exact kernel (minimize_regularized), so the selection is the exact one
+    every = select_regularizer(W, mask, fold_landmarks=25, **common)
+    plain = select_regularizer(W, mask, **common)
+    cols = ["tau", "gamma", "mean_test_error", "std_test_error"]
+    assert every.cv_results_[cols].equals(plain.cv_results_[cols])
+    again = select_regularizer(W, mask, fold_landmarks=10, **common)
+    assert again.cv_results_[cols].equals(sel.cv_results_[cols])  # same seed, same answer
+    with pytest.raises(ValueError, match="fold_landmarks"):
+        select_regularizer(W, mask, fold_landmarks=0, **common)

@@ -26,6 +26,7 @@ _REGISTRY = {
     "table2_all": ("table2", "Table2All"),
     "table3_full": ("table3", "Table3Full"),
     "selection": ("selection", "Selection"),
+    "selection_full": ("selection", "SelectionFull"),
     "selection_nrsfm": ("selection_nrsfm", "SelectionNRSfM"),
     "robust": ("robust", "Robust"),
     "out_of_sample": ("out_of_sample", "OutOfSample"),
