@@ -41,6 +41,7 @@ from sklearn.impute import IterativeImputer, KNNImputer
 from ..baselines import mean_impute
 from ..data_terms import MaskedLeastSquares
 from ..datasets import load_oil
+from ..preimage import average_solutions
 from ..regularizer import minimize_regularized
 from ..robust_kpca import RobustKernelPCA
 from .base import Experiment, Job, JobOutput, summary_stats
@@ -69,23 +70,38 @@ def _cv_folds(X, p, seed, cv):
 
 
 def select_complete(X, p, seed, cv) -> tuple[dict, pd.DataFrame]:
-    """Grid search of ``complete``'s gamma, tau and start neighbours by hold-out SSE on training rows.
+    """Grid search of ``complete``'s gamma, tau, neighbours, starts and weights by hold-out SSE on
+    training rows.
 
-    Returns the best parameters (lowest total hidden-entry SSE over the folds) and the whole grid's scores.
+    The "each" candidates share one set of solves: :meth:`~nldr.robust_kpca.RobustKernelPCA.complete_each`
+    from the largest neighbour count, averaged over its first k solutions for every k (exactly
+    ``complete(..., n_neighbors=k, starts="each")``). Returns the best parameters (lowest total
+    hidden-entry SSE over the folds) and the whole grid's scores.
     """
     scores = {}
+    ks = sorted(cv["n_neighbors"])
+
+    def add(key, X_hat, X_held, mask):
+        scores[key] = scores.get(key, 0.0) + float(np.sum((X_hat - X_held)[~mask] ** 2))
+
     for X_fit, X_held, mask in _cv_folds(X, p, seed, cv):
         W = np.where(mask, X_held, np.nan)
         for gamma, log10_tau in itertools.product(cv["gammas"], cv["log10_tau"]):
             model = RobustKernelPCA(gamma=gamma, tau=10.0**log10_tau).fit(X_fit)
-            for k, starts in itertools.product(cv["n_neighbors"], cv["starts"]):
-                X_hat = model.complete(W, mask, n_neighbors=k, starts=starts)
-                key = (gamma, log10_tau, k, starts)
-                scores[key] = scores.get(key, 0.0) + float(np.sum((X_hat - X_held)[~mask] ** 2))
+            if "mean" in cv["starts"]:
+                for k in ks:
+                    X_hat = model.complete(W, mask, n_neighbors=k, starts="mean")
+                    add((gamma, log10_tau, k, "mean", "uniform"), X_hat, X_held, mask)
+            if "each" in cv["starts"]:
+                solutions, distance = model.complete_each(W, mask, n_neighbors=ks[-1])
+                for k, weights in itertools.product(ks, cv["weights"]):
+                    X_hat = average_solutions(solutions[:, :k], distance[:, :k], weights)
+                    add((gamma, log10_tau, k, "each", weights), X_hat, X_held, mask)
     best = min(scores, key=scores.get)
-    columns = ["gamma", "log10_tau", "n_neighbors", "starts", "cv_sse"]
+    columns = ["gamma", "log10_tau", "n_neighbors", "starts", "weights", "cv_sse"]
     frame = pd.DataFrame([(*k, v) for k, v in scores.items()], columns=columns)
-    return {"gamma": best[0], "tau": 10.0 ** best[1], "n_neighbors": best[2], "starts": best[3]}, frame
+    keys = ("gamma", "tau", "n_neighbors", "starts", "weights")
+    return dict(zip(keys, (best[0], 10.0 ** best[1], *best[2:]), strict=True)), frame
 
 
 def select_knn(X, p, seed, cv) -> dict:
@@ -165,7 +181,9 @@ class OutOfSample(Experiment):
         chosen, _ = select_complete(X_train, p, seed, cv)
         model = RobustKernelPCA(gamma=chosen["gamma"], tau=chosen["tau"]).fit(X_train)
         X_hat, seconds = _timed(
-            lambda: model.complete(W, mask, n_neighbors=chosen["n_neighbors"], starts=chosen["starts"])
+            lambda: model.complete(
+                W, mask, n_neighbors=chosen["n_neighbors"], starts=chosen["starts"], weights=chosen["weights"]
+            )
         )
         record("complete", X_hat, seconds, X_test.shape[0], {**chosen, "rank": model.n_components_})
 
