@@ -166,3 +166,135 @@ def test_clear_errors():
         model.complete(X, np.ones(X.shape, bool), rho=-1.0)
     with pytest.raises(ValueError, match="Z must have shape"):
         model.inverse_transform(np.zeros((2, model.n_components_ + 1)))
+
+
+# --- Huber data loss, per-neighbour starts and their average (issue 18) ---------------------------
+
+
+def test_huber_objective_gradient_matches_finite_differences():
+    from nldr.preimage import completion_objective
+
+    X = data()
+    space = RobustKernelPCA(gamma=0.4, tau=0.5).fit(X)._subspace()
+    rng = np.random.default_rng(4)
+    W = data(4, 3, seed=6)
+    mask = rng.random(W.shape) < 0.7
+    Y = W + rng.choice([-1.0, 1.0], size=W.shape) * rng.uniform(0.05, 1.0, size=W.shape)
+    delta = 0.3  # residuals 0.05-1.0 in size: some inside, some outside, none within 1e-5 of the kink
+    assert np.any(np.abs(Y - W)[mask] < delta) and np.any(np.abs(Y - W)[mask] > delta)
+    f, g = completion_objective(space, W, mask, Y, rho=2.0, loss="huber", delta=delta)
+    h = 1e-5
+    num = np.zeros_like(Y)
+    for i in range(Y.shape[0]):
+        for j in range(Y.shape[1]):
+            E = np.zeros_like(Y)
+            E[i, j] = h
+            plus = completion_objective(space, W, mask, Y + E, rho=2.0, loss="huber", delta=delta)[0][i]
+            minus = completion_objective(space, W, mask, Y - E, rho=2.0, loss="huber", delta=delta)[0][i]
+            num[i, j] = (plus - minus) / (2 * h)
+    np.testing.assert_allclose(g, num, rtol=1e-6, atol=1e-8)
+
+
+def test_huber_with_a_delta_above_every_residual_is_least_squares():
+    # h_delta(t) = t^2 for |t| <= delta: same objective, same gradient, so the same L-BFGS path
+    from nldr.preimage import complete_rows, completion_objective
+
+    X = data()
+    space = RobustKernelPCA(gamma=0.4, tau=0.5).fit(X)._subspace()
+    W = data(6, 3, seed=7)
+    mask = np.ones(W.shape, bool)
+    mask[:, 1] = False
+    X0 = np.where(mask, W, 0.0)
+    big = 1e3  # residuals stay below |W| + |X| ~ 10
+    f_h, g_h = completion_objective(space, W, mask, X0 + 0.5, rho=3.0, loss="huber", delta=big)
+    f_s, g_s = completion_objective(space, W, mask, X0 + 0.5, rho=3.0)
+    np.testing.assert_array_equal(f_h, f_s)
+    np.testing.assert_array_equal(g_h, g_s)
+    a, _ = complete_rows(space, W, mask, X0, rho=3.0, loss="huber", delta=big)
+    b, _ = complete_rows(space, W, mask, X0, rho=3.0)
+    np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("starts", ["mean", "each"])
+def test_huber_complete_of_a_training_row_returns_it(starts):
+    # the objective is >= 0 and 0 at the row itself (residual 0, r = 0 in a full-rank model); with
+    # Huber and finite rho the start is the nearest training row on the observed entries: the row
+    X = data()
+    model = full_rank(X)
+    mask = np.ones((5, 3), bool)
+    mask[:, 2] = False
+    out = model.complete(X[:5], mask, rho=1.0, loss="huber", delta=0.1, n_neighbors=1, starts=starts)
+    np.testing.assert_allclose(out, X[:5], atol=1e-6)
+
+
+def test_huber_pulls_a_gross_error_back_where_least_squares_follows_it():
+    # A training row with one entry off by 8: at the clean row the Huber objective is
+    # 2 delta 8 - delta^2 (r = 0), and the solver descends from the clean row (its nearest training row
+    # under the Huber distance), so its answer costs no more. Least squares pays 64 at the clean row
+    # and starts at the corrupted one, so its answer stays further from the clean row.
+    from nldr.preimage import completion_objective
+
+    X = data(40)
+    model = full_rank(X)
+    space = model._subspace()
+    W = X[:3].copy()
+    W[:, 0] += 8.0
+    mask = np.ones(W.shape, bool)
+    delta, rho = 0.1, 10.0
+    out = model.complete(W, mask, rho=rho, loss="huber", delta=delta, n_neighbors=1)
+    f_out, _ = completion_objective(space, W, mask, out, rho=rho, loss="huber", delta=delta)
+    assert np.all(f_out <= 2 * delta * 8.0 - delta**2 + 1e-9)
+    ls = model.complete(W, mask, rho=rho)
+    assert np.all(np.abs(out - X[:3]).max(axis=1) < np.abs(ls - X[:3]).max(axis=1))
+
+
+def test_each_start_average_and_its_weights():
+    from nldr.preimage import average_solutions, nearest_rows
+
+    X = data(30)
+    model = RobustKernelPCA(gamma=0.5, tau=0.5).fit(X)
+    W = data(4, 3, seed=8)
+    mask = np.ones(W.shape, bool)
+    mask[:, 0] = False
+    sol, dist = model.complete_each(W, mask, n_neighbors=4)
+    assert sol.shape == (4, 4, 3) and np.all(np.diff(dist, axis=1) >= 0)
+    # brute force: mean squared difference over the observed columns, nearest first
+    D = ((W[:, None, 1:] - X[None, :, 1:]) ** 2).mean(axis=2)
+    np.testing.assert_allclose(dist, np.sort(D, axis=1)[:, :4], rtol=1e-10, atol=1e-12)
+    np.testing.assert_array_equal(nearest_rows(X, W, mask, 4)[0], np.argsort(D, axis=1)[:, :4])
+    np.testing.assert_allclose(model.complete(W, mask, n_neighbors=4, starts="each"), sol.mean(axis=1))
+    w = 1.0 / np.sqrt(dist)
+    expected = (w[:, :, None] * sol).sum(axis=1) / w.sum(axis=1)[:, None]
+    np.testing.assert_allclose(average_solutions(sol, dist, "distance"), expected, rtol=1e-12)
+    zero = dist.copy()
+    zero[0, 1] = 0.0
+    np.testing.assert_allclose(average_solutions(sol, zero, "distance")[0], sol[0, 1])
+
+
+def test_huber_neighbour_distance_is_the_mean_huber_loss():
+    from nldr.data_terms import huber_loss
+    from nldr.preimage import nearest_rows
+
+    X = data(30)
+    W = data(5, 3, seed=10)
+    mask = np.random.default_rng(11).random(W.shape) < 0.7
+    mask[:, 0] = True
+    idx, dist = nearest_rows(X, W, mask, 30, loss="huber", delta=0.2, chunk=2)
+    D = np.array(
+        [[huber_loss(W[i, mask[i]] - X[j, mask[i]], 0.2).mean() for j in range(30)] for i in range(5)]
+    )
+    np.testing.assert_allclose(dist, np.sort(D, axis=1), rtol=1e-10, atol=1e-14)
+
+
+def test_clear_errors_of_the_loss_options():
+    X = data()
+    model = RobustKernelPCA(gamma=0.5, tau=0.5).fit(X)
+    every = np.ones(X.shape, bool)
+    with pytest.raises(ValueError, match="loss must be"):
+        model.complete(X, every, loss="l1")
+    with pytest.raises(ValueError, match="delta"):
+        model.complete(X, every, rho=1.0, loss="huber")
+    with pytest.raises(ValueError, match="delta"):
+        model.complete(X, every, rho=1.0, loss="huber", delta=-1.0)
+    with pytest.raises(ValueError, match="weights"):
+        model.complete(X, every, starts="each", weights="inverse")

@@ -33,11 +33,18 @@ minimiser is every row's minimiser):
 - :func:`preimage`: min_x r_a(x), the pre-image of a subspace point (``inverse_transform``);
 - :func:`complete_rows`: min over the free entries of
 
-      ||m o (x - w)||^2 + rho r(x)
+      sum_j m_j l(x_j - w_j) + rho r(x),   l(t) = t^2 (squared) or h_delta(t) (Huber),
 
-  (the paper's masked least-squares data term plus the weight rho on the distance to the learned
-  manifold). ``rho=None`` is the hard limit: the observed entries stay fixed and the missing ones
-  minimise r alone.
+  (the paper's masked least-squares data term, or its Huber form :func:`nldr.data_terms.huber_loss`,
+  plus the weight rho on the distance to the learned manifold). ``rho=None`` is the hard limit: the
+  observed entries stay fixed and the missing ones minimise r alone.
+
+Starts and averaging. The problem is not convex. :func:`nearest_rows` finds the training rows nearest
+to a new row on its observed entries (mean loss l over them); :func:`average_solutions` combines the
+local minima reached from each of them (uniformly or by inverse distance). When many entries are
+missing, several branches of the manifold agree with the observed ones: a single local minimum
+commits to one branch, their average approximates the conditional mean, which has the lower expected
+squared error (oil flow at p = 0.5: REPRODUCTION.md, "New rows on a learned manifold").
 """
 
 from __future__ import annotations
@@ -47,9 +54,23 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
+from .data_terms import huber_loss
 from .kernels import center_cross_kernel, rbf_kernel
 
-__all__ = ["Subspace", "subspace_distance", "preimage", "complete_rows", "neighbour_start"]
+__all__ = [
+    "Subspace",
+    "subspace_distance",
+    "preimage",
+    "complete_rows",
+    "completion_objective",
+    "nearest_rows",
+    "neighbour_start",
+    "average_solutions",
+    "LOSSES",
+]
+
+#: data losses of :func:`complete_rows` and :func:`nearest_rows`
+LOSSES = ("squared", "huber")
 
 #: rows per L-BFGS block: each block's kernel is (block, n); blocks keep the curvature pairs of
 #: L-BFGS from mixing too many independent rows.
@@ -153,28 +174,98 @@ def _lbfgs_rows(
     return X, unconverged
 
 
-def neighbour_start(
-    X_fit: np.ndarray, W: np.ndarray, mask: np.ndarray, n_neighbors: int = 5, each: bool = False
-) -> np.ndarray:
-    """Starts for the missing entries from the nearest training rows on the observed entries.
+def _loss(T: np.ndarray, loss: str, delta: float | None) -> np.ndarray:
+    return T * T if loss == "squared" else huber_loss(T, delta)
 
-    The distance is the mean squared difference over a row's observed entries. With ``each`` False,
-    one start per row, at the mean of its ``n_neighbors`` nearest training rows (shape (m, d)); with
-    ``each`` True, one start per neighbour (shape (m, n_neighbors, d)). A row with nothing observed
-    starts at the training mean. Observed entries keep their values. Shapes: X_fit (n, d), W and mask
-    (m, d).
+
+def nearest_rows(
+    X_fit: np.ndarray,
+    W: np.ndarray,
+    mask: np.ndarray,
+    n_neighbors: int,
+    *,
+    loss: str = "squared",
+    delta: float | None = None,
+    chunk: int = 128,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The training rows nearest to each new row on its observed entries, nearest first.
+
+    The distance of a new row w (mask m) to a training row x is the mean loss over the observed
+    entries, ``sum_j m_j l(w_j - x_j) / sum_j m_j`` (l squared: the mean squared difference; l Huber:
+    the same with each entry's pull bounded, so a gross error in one observed entry does not decide
+    the neighbours). A row with nothing observed has distance 0 to every training row.
+
+    Parameters
+    ----------
+    X_fit : (n, d) training rows
+    W, mask : (m, d) new rows and their observation masks (True = observed)
+    n_neighbors : number of neighbours k (at most n)
+    loss, delta : "squared", or "huber" with threshold delta > 0 (units of W)
+    chunk : new rows per block of the (chunk, n, d) Huber differences
+
+    Returns
+    -------
+    index : (m, k) int, rows of X_fit, nearest first
+    distance : (m, k) their distances (units of W squared)
     """
     Wz = np.where(mask, W, 0.0)
     m = mask.astype(np.float64)
-    D = (m * Wz**2).sum(axis=1)[:, None] - 2.0 * Wz @ X_fit.T + m @ (X_fit**2).T
-    D /= np.maximum(m.sum(axis=1), 1.0)[:, None]
+    if loss == "squared":
+        D = (m * Wz**2).sum(axis=1)[:, None] - 2.0 * Wz @ X_fit.T + m @ (X_fit**2).T
+    else:
+        D = np.empty((W.shape[0], X_fit.shape[0]))
+        for start in range(0, W.shape[0], chunk):
+            rows = slice(start, start + chunk)
+            L = _loss(Wz[rows, None, :] - X_fit[None, :, :], loss, delta)
+            D[rows] = np.einsum("mnd,md->mn", L, m[rows])
+    D = np.maximum(D, 0.0) / np.maximum(m.sum(axis=1), 1.0)[:, None]
     k = min(int(n_neighbors), X_fit.shape[0])
     nearest = np.argpartition(D, k - 1, axis=1)[:, :k]
+    dist = np.take_along_axis(D, nearest, axis=1)
+    order = np.argsort(dist, axis=1, kind="stable")
+    return np.take_along_axis(nearest, order, axis=1), np.take_along_axis(dist, order, axis=1)
+
+
+def neighbour_start(
+    X_fit: np.ndarray,
+    W: np.ndarray,
+    mask: np.ndarray,
+    n_neighbors: int = 5,
+    each: bool = False,
+    *,
+    loss: str = "squared",
+    delta: float | None = None,
+) -> np.ndarray:
+    """Starts for the missing entries from the nearest training rows on the observed entries.
+
+    The neighbours are those of :func:`nearest_rows`. With ``each`` False, one start per row, at the
+    mean of its ``n_neighbors`` nearest training rows (shape (m, d)); with ``each`` True, one start per
+    neighbour, nearest first (shape (m, n_neighbors, d)). A row with nothing observed starts at the
+    training mean. Observed entries keep their values. Shapes: X_fit (n, d), W and mask (m, d).
+    """
+    Wz = np.where(mask, W, 0.0)
+    nearest, _ = nearest_rows(X_fit, W, mask, n_neighbors, loss=loss, delta=delta)
     starts = X_fit[nearest]  # (m, k, d)
     starts[~mask.any(axis=1)] = X_fit.mean(axis=0)
     if not each:
         return np.where(mask, W, starts.mean(axis=1))
     return np.where(mask[:, None, :], Wz[:, None, :], starts)
+
+
+def average_solutions(X: np.ndarray, distance: np.ndarray, weights: str = "uniform") -> np.ndarray:
+    """Combine per-neighbour solutions (m, k, d) into one row each (m, d).
+
+    ``weights="uniform"``: their mean; ``"distance"``: weights proportional to 1 / sqrt(distance)
+    (the inverse root-mean loss of :func:`nearest_rows`, as scikit-learn's ``KNNImputer`` weights by
+    inverse distance); a row with zero distances uses those neighbours alone, equally weighted.
+    """
+    if weights == "uniform":
+        return X.mean(axis=1)
+    root = np.sqrt(np.maximum(distance, 0.0))
+    zero = root <= 1e-300
+    w = np.where(zero.any(axis=1, keepdims=True), zero.astype(np.float64), 1.0 / np.where(zero, 1.0, root))
+    w /= w.sum(axis=1, keepdims=True)
+    return np.einsum("mk,mkd->md", w, X)
 
 
 def preimage(space: Subspace, A: np.ndarray, X0: np.ndarray, *, max_iter: int = 500, gtol: float = 1e-7):
@@ -201,31 +292,56 @@ def complete_rows(
     X0: np.ndarray,
     *,
     rho: float | None,
+    loss: str = "squared",
+    delta: float | None = None,
     max_iter: int = 500,
     gtol: float = 1e-7,
 ):
-    """Minimise ``||m o (x - w)||^2 + rho r(x)`` per row (``rho=None``: r over the missing entries only).
+    """Minimise ``sum_j m_j l(x_j - w_j) + rho r(x)`` per row (``rho=None``: r over the missing entries).
 
     Parameters
     ----------
     W : (m, d) observations (anything where ``mask`` is False)
     mask : (m, d) bool, True = observed
     X0 : (m, d) start (observed entries equal to W when ``rho`` is None)
-    rho : weight of the squared feature distance (kernel units) against the squared data residual
-        (data units squared); None = infinite (the hard limit)
+    rho : weight of the squared feature distance (kernel units) against the data loss (data units
+        squared); None = infinite (the hard limit, where the loss plays no part)
+    loss : "squared" (l(t) = t^2) or "huber" (l = h_delta of :func:`nldr.data_terms.huber_loss`: t^2
+        within delta, linear beyond, so an observed entry far from the manifold pulls with force at
+        most 2 delta)
+    delta : Huber threshold (units of W); required with loss "huber"
 
     Returns
     -------
     X : (m, d) completed (and, with finite rho, denoised) rows
     unconverged : number of row blocks that reached max_iter
     """
-    Wz = np.where(mask, W, 0.0)
     if rho is None:
         return _lbfgs_rows(lambda Y, rows: subspace_distance(space, Y), X0, ~mask, max_iter, gtol)
+    Wz = np.where(mask, W, 0.0)
 
     def fun_grad(Y, rows):
-        r, g = subspace_distance(space, Y)
-        res = mask[rows] * (Y - Wz[rows])
-        return (res**2).sum(axis=1) + rho * r, 2.0 * res + rho * g
+        return completion_objective(space, Wz[rows], mask[rows], Y, rho=rho, loss=loss, delta=delta)
 
     return _lbfgs_rows(fun_grad, X0, np.ones(W.shape, dtype=bool), max_iter, gtol)
+
+
+def completion_objective(
+    space: Subspace,
+    W: np.ndarray,
+    mask: np.ndarray,
+    X: np.ndarray,
+    *,
+    rho: float,
+    loss: str = "squared",
+    delta: float | None = None,
+):
+    """Per-row objective of :func:`complete_rows` with finite rho, and its gradient.
+
+    Returns ``f`` (m,), ``f_i = sum_j mask_ij l(X_ij - W_ij) + rho r(X_i)``, and ``df/dX`` (m, d),
+    with l' = 2 t (squared) or 2 clip(t, -delta, delta) (Huber). W, mask, X: (m, d).
+    """
+    r, g = subspace_distance(space, X)
+    res = mask * (X - np.where(mask, W, 0.0))
+    psi = res if loss == "squared" else np.clip(res, -delta, delta)
+    return _loss(res, loss, delta).sum(axis=1) + rho * r, 2.0 * psi + rho * g

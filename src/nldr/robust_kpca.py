@@ -24,7 +24,7 @@ from ._spectral import EIGENSOLVERS, check_eigensolver, cubic_threshold, leading
 from ._threads import blas_threads_for
 from ._validation import check_count, check_positive, check_symmetric_kernel
 from .kernels import center_cross_kernel, center_kernel, rbf_kernel
-from .preimage import Subspace, complete_rows, neighbour_start, preimage
+from .preimage import LOSSES, Subspace, average_solutions, complete_rows, nearest_rows, preimage
 
 __all__ = [
     "EIGENSOLVERS",
@@ -303,22 +303,42 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
             X, _ = preimage(self._subspace(), A, X0, max_iter=check_count(max_iter, "max_iter"))
         return X
 
-    def complete(self, X, mask, *, rho=None, n_neighbors: int = 5, starts: str = "mean", max_iter: int = 500):
+    def complete(
+        self,
+        X,
+        mask,
+        *,
+        rho=None,
+        loss: str = "squared",
+        delta=None,
+        n_neighbors: int = 5,
+        starts: str = "mean",
+        weights: str = "uniform",
+        max_iter: int = 500,
+    ):
         """Complete (and with finite rho denoise) rows never seen in ``fit`` against the learned manifold.
 
         Each row w with observation mask m solves the pre-image problem
 
-            min_x ||m o (x - w)||^2 + rho * dist(phi(x), principal subspace)^2
+            min_x sum_j m_j l(x_j - w_j) + rho * dist(phi(x), principal subspace)^2
 
-        with dist the feature-space distance of phi(x) to its projection onto the learned principal
-        subspace (kernel units). ``rho=None`` is the hard limit: the observed entries are kept and the
-        missing ones minimise the distance alone (completion); with a finite rho every entry may move,
-        so ``mask`` all True denoises. The missing entries start at the mean of the ``n_neighbors``
-        training rows nearest on the observed entries; the problem is not convex, so the answer is the
-        local minimum from that start (:mod:`nldr.preimage`). With ``starts="each"`` the problem is
-        solved from each of the ``n_neighbors`` nearest training rows and the local minima are averaged:
-        when few entries are observed, several branches of the manifold agree with them, and their mean
-        has a lower expected squared error than any one branch (the cost is ``n_neighbors`` times).
+        with l the squared loss or the Huber loss h_delta (:func:`nldr.data_terms.huber_loss`: equal
+        to the squared loss within delta, linear beyond) and dist the feature-space distance of phi(x)
+        to its projection onto the learned principal subspace (kernel units). ``rho=None`` is the hard
+        limit: the observed entries are kept and the missing ones minimise the distance alone
+        (completion); with a finite rho every entry may move, so ``mask`` all True denoises, and with
+        ``loss="huber"`` an observed entry with a gross error is pulled back to the manifold instead
+        of dragging the row to it.
+
+        Starts. The problem is not convex, so the answer is a local minimum. The neighbours are the
+        ``n_neighbors`` training rows nearest on the observed entries (mean loss l over them,
+        :func:`nldr.preimage.nearest_rows`). ``starts="mean"``: one start, the missing entries at the
+        neighbours' mean. ``starts="each"``: the problem is solved from each neighbour and the local
+        minima are averaged (``weights`` "uniform", or "distance": by inverse root-mean loss); when
+        many entries are missing, several branches of the manifold agree with the observed ones, one
+        local minimum commits to one branch, and the average has the lower expected squared error
+        (it costs ``n_neighbors`` solves). With the squared loss the observed entries start at w;
+        with Huber and finite rho they start at the neighbours' values (w may hold gross errors).
 
         Parameters
         ----------
@@ -327,11 +347,17 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         mask : bool array, shape (m, n_features_in_)
             True where observed.
         rho : float > 0 or None, default None
-            Weight of the squared feature distance against the squared data residual (data units^2).
+            Weight of the squared feature distance against the data loss (data units^2).
+        loss : {"squared", "huber"}, default "squared"
+            Data loss l on the observed entries (with rho None it only measures neighbour distances).
+        delta : float > 0, required with ``loss="huber"``
+            Huber threshold, in the units of X.
         n_neighbors : int, default 5
             Training rows nearest on the observed entries, that give the starts.
         starts : {"mean", "each"}, default "mean"
             One start at the neighbours' mean, or one start per neighbour with the results averaged.
+        weights : {"uniform", "distance"}, default "uniform"
+            How ``starts="each"`` averages its solutions (ignored with "mean").
         max_iter : int, default 500
             L-BFGS iterations per block of rows.
 
@@ -339,6 +365,83 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         -------
         X_hat : array, shape (m, n_features_in_)
         """
+        if starts not in ("mean", "each"):
+            raise ValueError(f"starts must be 'mean' or 'each'; got {starts!r}")
+        if weights not in ("uniform", "distance"):
+            raise ValueError(f"weights must be 'uniform' or 'distance'; got {weights!r}")
+        if starts == "each":
+            solutions, distance = self.complete_each(
+                X, mask, rho=rho, loss=loss, delta=delta, n_neighbors=n_neighbors, max_iter=max_iter
+            )
+            return average_solutions(solutions, distance, weights)
+        X, mask, rho, delta = self._check_complete(X, mask, rho, loss, delta)
+        nearest, _ = nearest_rows(
+            self.X_fit_, X, mask, check_count(n_neighbors, "n_neighbors"), loss=loss, delta=delta
+        )
+        X0 = self._starts(X, mask, self.X_fit_[nearest].mean(axis=1, keepdims=True), rho, loss)[:, 0]
+        with blas_threads_for(self.X_fit_.shape[0]):
+            X_hat, _ = complete_rows(
+                self._subspace(),
+                X,
+                mask,
+                X0,
+                rho=rho,
+                loss=loss,
+                delta=delta,
+                max_iter=check_count(max_iter, "max_iter"),
+            )
+        return X_hat
+
+    def complete_each(
+        self,
+        X,
+        mask,
+        *,
+        rho=None,
+        loss: str = "squared",
+        delta=None,
+        n_neighbors: int = 5,
+        max_iter: int = 500,
+    ):
+        """The local minima of :meth:`complete`'s problem from each neighbour, before averaging.
+
+        Same parameters as :meth:`complete`. Returns ``(solutions, distance)``: solutions, shape
+        (m, k, n_features_in_), the solution from the j-th nearest training row (nearest first), and
+        distance, shape (m, k), that row's mean loss on the observed entries (k = min(n_neighbors,
+        n_samples)). ``nldr.preimage.average_solutions(solutions[:, :j], distance[:, :j], weights)``
+        is ``complete(..., n_neighbors=j, starts="each", weights=weights)`` for any j <= k, up to the
+        solver's tolerance (rows are solved in blocks that share L-BFGS's stopping test).
+        """
+        X, mask, rho, delta = self._check_complete(X, mask, rho, loss, delta)
+        nearest, distance = nearest_rows(
+            self.X_fit_, X, mask, check_count(n_neighbors, "n_neighbors"), loss=loss, delta=delta
+        )
+        X0 = self._starts(X, mask, self.X_fit_[nearest], rho, loss)
+        (m, k, d) = X0.shape
+        with blas_threads_for(self.X_fit_.shape[0]):
+            X_hat, _ = complete_rows(
+                self._subspace(),
+                np.repeat(X, k, axis=0),
+                np.repeat(mask, k, axis=0),
+                X0.reshape(m * k, d),
+                rho=rho,
+                loss=loss,
+                delta=delta,
+                max_iter=check_count(max_iter, "max_iter"),
+            )
+        return X_hat.reshape(m, k, d), distance
+
+    def _starts(self, X, mask, rows, rho, loss):
+        """Starts (m, k, d) from neighbour rows (m, k, d): the observed entries at X (squared loss or
+        the hard limit) or at the neighbours' values (Huber with finite rho); rows with nothing
+        observed start at the training mean."""
+        rows = np.array(rows)
+        rows[~mask.any(axis=1)] = self.X_fit_.mean(axis=0)
+        if loss == "huber" and rho is not None:
+            return rows
+        return np.where(mask[:, None, :], np.where(mask, X, 0.0)[:, None, :], rows)
+
+    def _check_complete(self, X, mask, rho, loss, delta):
         check_is_fitted(self)
         X = np.asarray(X, dtype=np.float64)
         if X.ndim != 2 or X.shape[1] != self.n_features_in_:
@@ -351,19 +454,13 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         if not np.all(np.isfinite(X[mask])):
             raise ValueError("X has NaN or infinite values at observed entries (where mask is True)")
         rho = None if rho is None else check_positive(rho, "rho")
-        if starts not in ("mean", "each"):
-            raise ValueError(f"starts must be 'mean' or 'each'; got {starts!r}")
-        k = check_count(n_neighbors, "n_neighbors")
-        X0 = neighbour_start(self.X_fit_, X, mask, k, each=starts == "each")
-        m, d = X.shape
-        if starts == "each":
-            k = X0.shape[1]
-            X, mask, X0 = np.repeat(X, k, axis=0), np.repeat(mask, k, axis=0), X0.reshape(m * k, d)
-        with blas_threads_for(self.X_fit_.shape[0]):
-            X_hat, _ = complete_rows(
-                self._subspace(), X, mask, X0, rho=rho, max_iter=check_count(max_iter, "max_iter")
-            )
-        return X_hat.reshape(m, -1, d).mean(axis=1)
+        if loss not in LOSSES:
+            raise ValueError(f"loss must be one of {LOSSES}; got {loss!r}")
+        if loss == "huber":
+            if delta is None:
+                raise ValueError("delta (the Huber threshold, units of X) is required with loss='huber'")
+            delta = check_positive(delta, "delta")
+        return np.where(mask, X, 0.0), mask, rho, delta
 
     def fit_transform(self, X, y=None):
         """Fit and return the training coordinates ``U diag(l)``, shape (n_samples, n_components_)."""

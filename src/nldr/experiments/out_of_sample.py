@@ -22,6 +22,14 @@ rows are held out in turn, their entries hidden at the job's p (seeded), the met
 training rows, and the SSE on the hidden entries scored. The test rows' ground truth is used only for the
 reported errors.
 
+Huber demonstration (``corrupt`` jobs): the test rows at p = ``corrupt.p`` with gross errors in a share of
+their observed entries (as in the ``robust`` experiment: random sign times 3-6 column standard
+deviations), and ``complete`` with finite rho, every entry free: ``complete (LS)`` with the squared loss,
+``complete (Huber)`` with the Huber loss; their rho (and delta) by hold-out CV on training rows corrupted
+the same way (:func:`select_denoising`); gamma, tau and the neighbours fixed in ``corrupt``. Against them
+``complete`` (hard limit: observed entries, errors included, kept) and ``KNNImputer``; ``sse`` is
+against the clean test rows over all entries.
+
 Metrics: ``sse`` over all test entries (observed entries are returned as observed by every method),
 ``sse_subset`` on the rows ``Ours`` solves (for comparing with it), and ``ms_per_row``: CPU milliseconds
 (``time.process_time``, the pipeline pins BLAS to one thread) per test row of the completion step, the
@@ -41,14 +49,16 @@ from sklearn.impute import IterativeImputer, KNNImputer
 from ..baselines import mean_impute
 from ..data_terms import MaskedLeastSquares
 from ..datasets import load_oil
+from ..preimage import average_solutions
 from ..regularizer import minimize_regularized
 from ..robust_kpca import RobustKernelPCA
 from .base import Experiment, Job, JobOutput, summary_stats
+from .robust import gross_corruption
 from .table2 import random_mask
 
-__all__ = ["OutOfSample", "METHODS", "cv_splits", "select_complete", "select_knn"]
+__all__ = ["OutOfSample", "METHODS", "cv_splits", "select_complete", "select_knn", "select_denoising"]
 
-METHODS = ("complete", "KNNImputer", "IterativeImputer", "Ours")
+METHODS = ("complete", "complete (LS)", "complete (Huber)", "KNNImputer", "IterativeImputer", "Ours")
 
 
 def cv_splits(n: int, holdout_rows: int, n_folds: int, seed: int):
@@ -69,23 +79,67 @@ def _cv_folds(X, p, seed, cv):
 
 
 def select_complete(X, p, seed, cv) -> tuple[dict, pd.DataFrame]:
-    """Grid search of ``complete``'s gamma, tau and start neighbours by hold-out SSE on training rows.
+    """Grid search of ``complete``'s gamma, tau, neighbours, starts and weights by hold-out SSE on
+    training rows.
 
-    Returns the best parameters (lowest total hidden-entry SSE over the folds) and the whole grid's scores.
+    The "each" candidates share one set of solves: :meth:`~nldr.robust_kpca.RobustKernelPCA.complete_each`
+    from the largest neighbour count, averaged over its first k solutions for every k (exactly
+    ``complete(..., n_neighbors=k, starts="each")``). Returns the best parameters (lowest total
+    hidden-entry SSE over the folds) and the whole grid's scores.
     """
     scores = {}
+    ks = sorted(cv["n_neighbors"])
+
+    def add(key, X_hat, X_held, mask):
+        scores[key] = scores.get(key, 0.0) + float(np.sum((X_hat - X_held)[~mask] ** 2))
+
     for X_fit, X_held, mask in _cv_folds(X, p, seed, cv):
         W = np.where(mask, X_held, np.nan)
         for gamma, log10_tau in itertools.product(cv["gammas"], cv["log10_tau"]):
             model = RobustKernelPCA(gamma=gamma, tau=10.0**log10_tau).fit(X_fit)
-            for k, starts in itertools.product(cv["n_neighbors"], cv["starts"]):
-                X_hat = model.complete(W, mask, n_neighbors=k, starts=starts)
-                key = (gamma, log10_tau, k, starts)
-                scores[key] = scores.get(key, 0.0) + float(np.sum((X_hat - X_held)[~mask] ** 2))
+            if "mean" in cv["starts"]:
+                for k in ks:
+                    X_hat = model.complete(W, mask, n_neighbors=k, starts="mean")
+                    add((gamma, log10_tau, k, "mean", "uniform"), X_hat, X_held, mask)
+            if "each" in cv["starts"]:
+                solutions, distance = model.complete_each(W, mask, n_neighbors=ks[-1])
+                for k, weights in itertools.product(ks, cv["weights"]):
+                    X_hat = average_solutions(solutions[:, :k], distance[:, :k], weights)
+                    add((gamma, log10_tau, k, "each", weights), X_hat, X_held, mask)
     best = min(scores, key=scores.get)
-    columns = ["gamma", "log10_tau", "n_neighbors", "starts", "cv_sse"]
+    columns = ["gamma", "log10_tau", "n_neighbors", "starts", "weights", "cv_sse"]
     frame = pd.DataFrame([(*k, v) for k, v in scores.items()], columns=columns)
-    return {"gamma": best[0], "tau": 10.0 ** best[1], "n_neighbors": best[2], "starts": best[3]}, frame
+    keys = ("gamma", "tau", "n_neighbors", "starts", "weights")
+    return dict(zip(keys, (best[0], 10.0 ** best[1], *best[2:]), strict=True)), frame
+
+
+def select_denoising(X, p, share, seed, cv, c) -> tuple[dict, dict]:
+    """Loss, rho and delta of ``complete`` with finite rho for rows with gross errors, by hold-out CV on
+    training rows: each held-out block gets the job's missing entries (probability p) and gross errors
+    in ``share`` of its observed entries (:func:`nldr.experiments.robust.gross_corruption`, seeded), and
+    the SSE against the clean held-out rows over all entries is scored (training rows are clean, so the
+    corruption is simulated there; the test rows' truth is never used). Returns the best squared-loss
+    and the best Huber candidate, each a dict of ``complete`` keyword arguments."""
+    scores = {}
+    folds = list(cv_splits(X.shape[0], cv["holdout_rows"], c["n_folds"], seed))
+    sd = c["outlier_sd"]
+    for k, (fit, held) in enumerate(folds):
+        mask = random_mask((held.size, X.shape[1]), p, seed + 1000 + k)
+        W, _ = gross_corruption(X[held], mask, [share], seed + 2000 + k, low=sd["low"], high=sd["high"])[
+            share
+        ]
+        model = RobustKernelPCA(gamma=c["gamma"], tau=10.0 ** c["log10_tau"]).fit(X[fit])
+        candidates = [{"loss": "squared", "rho": r} for r in c["rho"]]
+        candidates += [{"loss": "huber", "rho": r, "delta": d} for r in c["rho"] for d in c["delta"]]
+        for kw in candidates:
+            X_hat = model.complete(W, mask, n_neighbors=c["n_neighbors"], starts="each", **kw)
+            key = tuple(sorted(kw.items()))
+            scores[key] = scores.get(key, 0.0) + float(np.sum((X_hat - X[held]) ** 2))
+    best = {}
+    for loss in ("squared", "huber"):
+        key = min((key for key in scores if dict(key)["loss"] == loss), key=scores.get)
+        best[loss] = dict(key)
+    return best["squared"], best["huber"]
 
 
 def select_knn(X, p, seed, cv) -> dict:
@@ -120,10 +174,19 @@ class OutOfSample(Experiment):
 
     def jobs(self, config):
         s = self.settings(config)
-        return [
+        c = s["corrupt"]
+        clean = [
             Job(f"p{p:g}_seed{s['seed'] + k}", {"p": p, "seed": s["seed"] + k})
             for p in s["p"]
             for k in range(s["n_masks"])
+        ]
+        return clean + [
+            Job(
+                f"p{c['p']:g}_corrupt{share:g}_seed{s['seed'] + k}",
+                {"p": c["p"], "corrupt": share, "seed": s["seed"] + k},
+            )
+            for share in c["shares"]
+            for k in range(c["n_masks"])
         ]
 
     def data_files(self, config, job=None):
@@ -139,6 +202,7 @@ class OutOfSample(Experiment):
         p, seed = job.params["p"], job.params["seed"]
         mask = random_mask(X_test.shape, p, seed)
         W = np.where(mask, X_test, np.nan)
+        share = float(job.params.get("corrupt", 0.0))
         cv = settings["cv"]
         n_sub = settings["ours"]["n_test"]
         rows = []
@@ -149,6 +213,7 @@ class OutOfSample(Experiment):
             rows.append(
                 {
                     "p": p,
+                    "corrupt": share,
                     "seed": seed,
                     "method": method,
                     "sse": float(err.sum()) if full else np.nan,
@@ -162,10 +227,35 @@ class OutOfSample(Experiment):
                 f"{rows[-1]['ms_per_row']:.2f} ms/row {params}"
             )
 
+        if share > 0:
+            c = settings["corrupt"]
+            sd = c["outlier_sd"]
+            W, _ = gross_corruption(X_test, mask, [share], seed, low=sd["low"], high=sd["high"])[share]
+            model = RobustKernelPCA(gamma=c["gamma"], tau=10.0 ** c["log10_tau"]).fit(X_train)
+            fixed = {"gamma": c["gamma"], "log10_tau": c["log10_tau"], "n_neighbors": c["n_neighbors"]}
+            runs = [("complete", {})]
+            runs += zip(
+                ("complete (LS)", "complete (Huber)"),
+                select_denoising(X_train, p, share, seed, cv, c),
+                strict=True,
+            )
+            for method, kw in runs:
+                X_hat, seconds = _timed(
+                    lambda kw=kw: model.complete(W, mask, n_neighbors=c["n_neighbors"], starts="each", **kw)
+                )
+                record(method, X_hat, seconds, X_test.shape[0], {**fixed, **kw})
+            knn = select_knn(X_train, p, seed, cv)
+            imputer = KNNImputer(**knn).fit(X_train)
+            X_hat, seconds = _timed(lambda: imputer.transform(np.where(mask, W, np.nan)))
+            record("KNNImputer", X_hat, seconds, X_test.shape[0], knn)
+            return JobOutput(rows=pd.DataFrame(rows))
+
         chosen, _ = select_complete(X_train, p, seed, cv)
         model = RobustKernelPCA(gamma=chosen["gamma"], tau=chosen["tau"]).fit(X_train)
         X_hat, seconds = _timed(
-            lambda: model.complete(W, mask, n_neighbors=chosen["n_neighbors"], starts=chosen["starts"])
+            lambda: model.complete(
+                W, mask, n_neighbors=chosen["n_neighbors"], starts=chosen["starts"], weights=chosen["weights"]
+            )
         )
         record("complete", X_hat, seconds, X_test.shape[0], {**chosen, "rank": model.n_components_})
 
@@ -199,14 +289,16 @@ class OutOfSample(Experiment):
 
     def summarise(self, runs):
         out = []
-        for p in sorted(runs["p"].unique()):
-            for method in [m for m in METHODS if m in set(runs["method"])]:
-                group = runs[(runs["p"] == p) & (runs["method"] == method)]
+        runs = runs.assign(corrupt=runs["corrupt"] if "corrupt" in runs else 0.0)
+        for (c, p), setting in runs.groupby(["corrupt", "p"], sort=True):
+            name = f"p={p:g}" if c == 0 else f"corrupt={c:g},p={p:g}"
+            for method in [m for m in METHODS if m in set(setting["method"])]:
+                group = setting[setting["method"] == method]
                 stats = {"n_masks": float(len(group))}
                 for metric in ("sse", "sse_subset", "ms_per_row"):
                     stats.update(summary_stats(group[metric], metric))
                 for metric, value in stats.items():
-                    out.append((f"p={p:g}", method, metric, float(value)))
+                    out.append((name, method, metric, float(value)))
         return pd.DataFrame(out, columns=["setting", "method", "metric", "value"])
 
     def caption(self, config):
@@ -220,5 +312,8 @@ class OutOfSample(Experiment):
             f"KNNImputer by {cv['n_folds']}-fold hold-out CV on {cv['holdout_rows']} training rows per fold "
             f"(entries hidden at the same p). Ours: the regularizer solved jointly on the first "
             f"{o['n_train']} training and first {o['n_test']} test rows (paper's gamma = {o['gamma']:g}, "
-            f"tau = {o['tau']:g}; not CV), compared on sse_subset, the SSE over those test rows."
+            f"tau = {o['tau']:g}; not CV), compared on sse_subset, the SSE over those test rows. "
+            f"corrupt=c: a share c of the observed test entries (p = {s['corrupt']['p']:g}) given gross "
+            f"errors; complete (LS) / (Huber): finite rho (and delta) by CV on training rows corrupted "
+            f"the same way, {s['corrupt']['n_masks']} masks; SSE against the clean rows."
         )
