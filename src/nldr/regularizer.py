@@ -355,12 +355,24 @@ def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, e
     """
     hint = RankHint()
     landmarks = report.pop("landmarks")
+    variables = report.pop("variables", None)
     if landmarks is not None:
         idx = landmark_indices(S.shape[0], *landmarks)
         frozen = {}
 
     def stage(S, rho, energies):
         tol = tols[1] if rho == rhos[-1] else tols[0]
+        if variables is not None:  # L-BFGS in the linear change of variables S = variables.to_samples(Y)
+
+            def value_grad_y(Y):
+                value, grad, _ = reduced_value_grad(
+                    variables.to_samples(Y), data_term, gamma, tau, rho, center, eigensolver, hint
+                )
+                return value, variables.gradient_to_variables(grad)
+
+            Y0 = variables.to_variables(S)
+            Y, nit, ok, why = lbfgs_minimize(value_grad_y, Y0, max_inner, tol, gtol, energies)
+            return variables.to_samples(Y), nit, ok, why
         if landmarks is None:
             return lbfgs_stage(
                 S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint
@@ -405,6 +417,7 @@ def minimize_regularized(
     callback=None,
     landmarks: int | None = None,
     landmark_seed: int = 0,
+    variables=None,
 ) -> RegularizerResult:
     """Minimise ``f(S) + rho/2 ||K(S) - C^T C||_F^2 + tau ||C||_*`` by the penalty method.
 
@@ -469,6 +482,13 @@ def minimize_regularized(
         solve: docs/PERFORMANCE.md). None (default), or ``landmarks >= n_samples``: the exact kernel.
     landmark_seed : int, default=0
         Seed of the landmark draw.
+    variables : object, optional
+        A fixed invertible linear change of variables S = A(Y) in which L-BFGS runs (a
+        preconditioner: the minimisers are the same, the conditioning is not). It provides
+        ``to_samples(Y) -> S``, ``to_variables(S) -> Y`` (the inverse) and
+        ``gradient_to_variables(G) -> A^T(G)``, all on arrays of S's shape (e.g.
+        :class:`nldr.experiments.table3.CameraFrameVariables`). None (default): L-BFGS on S, as before.
+        Not with ``landmarks``.
 
     Returns
     -------
@@ -494,6 +514,8 @@ def minimize_regularized(
     eigensolver = check_eigensolver(eigensolver)
     if callback is not None and not callable(callback):
         raise ValueError(f"callback must be callable or None; got {type(callback).__name__}")
+    if variables is not None and (landmarks is not None or not hasattr(variables, "gradient_to_variables")):
+        raise ValueError("variables must be a change of variables (see the docstring), without landmarks")
     if landmarks is not None and check_count(landmarks, "landmarks") < S.shape[0]:
         landmarks = (landmarks, int(landmark_seed))
     else:
@@ -501,5 +523,6 @@ def minimize_regularized(
     with blas_threads_for(S.shape[0]):  # one BLAS thread on small problems (nldr._threads)
         return _run_stages(
             S.copy(), data_term, gamma, tau, bool(center), rhos, max_inner, (stage_tol, tol), gtol,
-            eigensolver, start, {"callback": callback, "verbose": bool(verbose), "landmarks": landmarks},
+            eigensolver, start, {"callback": callback, "verbose": bool(verbose), "landmarks": landmarks}
+            | ({} if variables is None else {"variables": variables}),
         )  # fmt: skip
