@@ -62,8 +62,8 @@ def reference_shapes(runs: Path, job_id: str) -> dict:
     }
 
 
-def run_case(name, frac, seed, widths, variants, data_dir, runs):
-    seq = load_mocap(name, data_dir).subsample(10)
+def run_case(name, frac, seed, widths, variants, data_dir, runs, step=10):
+    seq = load_mocap(name, data_dir).subsample(step)
     W2d, X_gt = stack_to_rows(seq.W, dim=2), stack_to_rows(seq.S, dim=3)
     F, P = W2d.shape[0], W2d.shape[1] // 2
     mask = np.ones((F, P), dtype=bool) if frac == 0 else random_visibility_mask(F, P, frac, seed)
@@ -120,6 +120,7 @@ def main(argv=None):
     ap.add_argument("--tol", type=float, default=1e-12)
     ap.add_argument("--gtol", type=float, default=1e-10)
     ap.add_argument("--rho-max", type=float, default=1e3)
+    ap.add_argument("--step", type=int, default=10, help="every step-th frame (table3_full: 1)")
     ap.add_argument("--data-dir", default=None)
     ap.add_argument("--reference-runs", type=Path, default=Path("results/runs/table3"))
     ap.add_argument("--out", type=Path, default=OUT)
@@ -147,7 +148,9 @@ def main(argv=None):
     with threadpool_limits(1):
         for name in args.sequences:
             for frac, seed in settings:
-                rows += run_case(name, frac, seed, args.widths, variants, args.data_dir, args.reference_runs)
+                rows += run_case(
+                    name, frac, seed, args.widths, variants, args.data_dir, args.reference_runs, args.step
+                )
     table = pd.DataFrame(rows)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     table.to_csv(args.out, index=False)
