@@ -1,5 +1,5 @@
 """Benchmark: Table 3's kernel stage (known cameras), L-BFGS on the shapes against L-BFGS in
-camera-frame variables (:class:`~nldr.experiments.table3.CameraFrameVariables`).
+camera-frame variables (:class:`~nldr.nrsfm.CameraFrameVariables`).
 
 Each case is one Table 3 job's kernel solve: CMU mocap every 10th frame, 41 points, full data or 50 %
 of the (frame, point) observations hidden (``random_visibility_mask(F, P, 0.5, seed)``), TNH (ADMM,
@@ -35,8 +35,8 @@ from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_mocap
 from nldr.experiments.mocap import WIDTHS
-from nldr.experiments.table3 import CameraFrameVariables
 from nldr.nrsfm import (
+    CameraFrameVariables,
     OrthographicReprojection,
     e3d,
     random_visibility_mask,

@@ -10,6 +10,7 @@ from threadpoolctl import threadpool_limits
 
 from nldr.kernels import d_med_width
 from nldr.nrsfm import (
+    CameraFrameVariables,
     OrthographicReprojection,
     e3d,
     initialize_cameras,
@@ -260,3 +261,40 @@ def test_tnh_scores_are_cold_start_fold_solves_and_cv_beats_an_extreme_tau():
     np.testing.assert_array_equal(ksel.result_.x, by_hand.x)
     with pytest.raises(ValueError, match="another mask"):
         select_kernel(W, mask & ~sel.folds_[0], tnh=sel)
+
+
+def test_depth_scale_runs_folds_and_refit_in_camera_frame_variables():
+    # each fold solve and the refit are minimize_regularized with CameraFrameVariables of that
+    # solve's cameras and training mask: recomputed by hand, the scores and the refit agree
+    W, R, _, mask = synthetic_sequence(F=12, P=7, missing=0.3)
+    sel = select_kernel(
+        W, mask, R=R, taus=[1e-3], width_multiples=[1.0], n_folds=2, rule="min", depth_scale=30.0, **SCHEDULE
+    )
+    errors = []
+    for hidden in visibility_folds(mask, 2, random_state=0):
+        train = mask & ~hidden
+        X0 = trace_norm_heuristic(W, R, train).x
+        res = minimize_regularized(
+            OrthographicReprojection(W, R, train),
+            X0,
+            gamma=d_med_width(X0),
+            tau=1e-3,
+            variables=CameraFrameVariables(R, train, 30.0),
+            **SCHEDULE,
+        )
+        errors.append(holdout_reprojection_error(W, hidden, R, res.x))
+    assert sel.cv_results_["mean_test_error"].iloc[0] == pytest.approx(np.mean(errors), rel=1e-12)
+    X0 = trace_norm_heuristic(W, R, mask).x
+    refit = minimize_regularized(
+        OrthographicReprojection(W, R, mask),
+        X0,
+        gamma=d_med_width(X0),
+        tau=1e-3,
+        variables=CameraFrameVariables(R, mask, 30.0),
+        **SCHEDULE,
+    )
+    np.testing.assert_array_equal(sel.result_.x, refit.x)
+    with pytest.raises(ValueError, match="depth_scale"):
+        select_kernel(W, mask, R=R, depth_scale=0.0)
+    with pytest.raises(ValueError, match="variables"):
+        select_kernel(W, mask, R=R, variables=CameraFrameVariables(R, mask, 30.0))

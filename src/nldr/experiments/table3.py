@@ -31,7 +31,14 @@ from threadpoolctl import threadpool_limits
 from .. import paper as paper_numbers
 from .._validation import check_count, check_positive
 from ..datasets import load_mocap
-from ..nrsfm import OrthographicReprojection, e3d, random_visibility_mask, stack_to_rows, trace_norm_heuristic
+from ..nrsfm import (
+    CameraFrameVariables,
+    OrthographicReprojection,
+    e3d,
+    random_visibility_mask,
+    stack_to_rows,
+    trace_norm_heuristic,
+)
 from ..paper import paper_frame
 from ..plotting import figure1
 from ..regularizer import minimize_regularized
@@ -46,7 +53,7 @@ from .mocap import (
     setting_label,
 )
 
-__all__ = ["Table3Run", "CameraFrameVariables", "run_sequence", "Table3", "Table3Full"]
+__all__ = ["Table3Run", "run_sequence", "Table3", "Table3Full"]
 
 _ROW_COLUMNS = [
     "sequence",
@@ -96,63 +103,6 @@ class Table3Run:
     mask: np.ndarray
     ground_truth: np.ndarray
     results: dict = field(default_factory=dict)
-
-
-class CameraFrameVariables:
-    """Each 3D point in its frame's camera coordinates, the unheld ones scaled: a preconditioner.
-
-    With known orthographic cameras the data term holds a point's two image coordinates with
-    curvature 2 and leaves its depth (and all three coordinates of an unobserved point) to the
-    regularizer, whose curvature is smaller by orders of magnitude (tau = 1e-4): L-BFGS on S then
-    needs thousands of iterations per penalty stage. In the variables Y, point j of frame f is
-    ``s_fj = Q_f^T D_fj y_fj`` with ``Q_f = [R_f; r_f1 x r_f2]`` (a rotation for orthonormal
-    cameras) and ``D_fj = diag(1, 1, depth_scale)`` if observed, ``depth_scale I`` if not: the
-    unheld directions move ``depth_scale`` times further per unit step, which brings their
-    curvature towards the data term's. The map is linear and invertible, so the minimisers are
-    the same; only the path of the solver changes (docs/REPRODUCTION.md#table-3-solver).
-
-    Parameters
-    ----------
-    R : array, shape (F, 2, 3)
-        Orthographic cameras (rows independent).
-    mask : bool array, shape (F, P)
-        True where the point is observed.
-    depth_scale : float > 0
-        Scale of the unheld directions (1: only the rotation).
-
-    Methods take and return arrays of shape (F, 3P), shapes as rows (x_1..x_P, y_1..y_P, z_1..z_P).
-    """
-
-    def __init__(self, R, mask, depth_scale: float):
-        R = np.asarray(R, dtype=np.float64)
-        mask = np.asarray(mask, dtype=bool)
-        if R.ndim != 3 or R.shape[1:] != (2, 3):
-            raise ValueError(f"R must have shape (F, 2, 3); got {R.shape}")
-        if mask.ndim != 2 or mask.shape[0] != R.shape[0]:
-            raise ValueError(f"mask must have shape (F, P) with F = {R.shape[0]}; got {mask.shape}")
-        Q = np.concatenate([R, np.cross(R[:, 0], R[:, 1])[:, None]], axis=1)  # (F, 3, 3)
-        if np.any(np.abs(np.linalg.det(Q)) < 1e-12):
-            raise ValueError("R has a camera with two dependent rows; the change of variables needs a basis")
-        scale = np.ones((R.shape[0], 3, mask.shape[1]))
-        scale[:, 2, :] = check_positive(depth_scale, "depth_scale")
-        scale[~np.broadcast_to(mask[:, None, :], scale.shape)] = depth_scale
-        self._Q, self._Qinv_T, self._scale = Q, np.linalg.inv(Q).transpose(0, 2, 1), scale
-        self._shape = scale.shape
-
-    def to_samples(self, Y):
-        """S = A(Y): ``s_fj = Q_f^T D_fj y_fj``."""
-        Y = np.asarray(Y).reshape(self._shape)
-        return np.einsum("fck,fcj->fkj", self._Q, self._scale * Y).reshape(self._shape[0], -1)
-
-    def to_variables(self, S):
-        """Y = A^-1(S)."""
-        S = np.asarray(S).reshape(self._shape)
-        return (np.einsum("fck,fkj->fcj", self._Qinv_T, S) / self._scale).reshape(self._shape[0], -1)
-
-    def gradient_to_variables(self, G):
-        """A^T(G): the gradient in Y of a function whose gradient in S is G."""
-        G = np.asarray(G).reshape(self._shape)
-        return (self._scale * np.einsum("fck,fkj->fcj", self._Q, G)).reshape(self._shape[0], -1)
 
 
 def _tnh_call_options(tnh_options: Mapping | None) -> tuple[str, dict]:

@@ -10,7 +10,8 @@ Unknown cameras (Table 4): :func:`initialize_cameras` (rigid factorisation,
 (:mod:`nldr.nrsfm.unknown_cameras`; the kernel stage with cameras and shapes optimised jointly in
 :mod:`nldr.nrsfm.joint_kernel`) on top of the camera LM and the shape/camera alternation
 (:mod:`nldr.nrsfm.camera_refinement`, :mod:`nldr.nrsfm.rotations`); evaluation up to the global gauge
-by :func:`e3d` (``align=True``) and :func:`camera_error`.
+by :func:`e3d` (``align=True``) and :func:`camera_error`. With known cameras L-BFGS runs best in
+:class:`CameraFrameVariables` (each point in its camera's frame, the unheld directions scaled).
 
 Parameters from the tracks alone (:mod:`nldr.nrsfm.selection`): :func:`select_tnh_tau` and
 :func:`select_kernel` choose TNH's tau and the kernel method's tau and width by hold-out
@@ -56,8 +57,10 @@ from .unknown_cameras import (
     tnh_with_camera_refinement,
     tune_tau,
 )
+from .variables import CameraFrameVariables
 
 __all__ = [
+    "CameraFrameVariables",
     "stack_to_rows",
     "rows_to_stack",
     "cameras_from_stack",

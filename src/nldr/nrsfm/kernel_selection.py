@@ -32,13 +32,14 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from .._cv import positive_grid, run_jobs, summarise_folds
-from .._validation import check_count
+from .._validation import check_count, check_positive
 from ..kernels import d_max_width, d_med_width
 from ..regularizer import minimize_regularized
 from .reprojection import OrthographicReprojection, check_cameras, check_tracks
 from .selection import TNHTauSelection, holdout_reprojection_error, visibility_folds
 from .tnh import trace_norm_heuristic
 from .unknown_cameras import kernel_with_camera_refinement
+from .variables import CameraFrameVariables
 
 __all__ = [
     "DEFAULT_KERNEL_TAUS",
@@ -120,9 +121,11 @@ class KernelSelection:
         )
 
 
-def _kernel_fold(W2d, train, hidden, R, X_start, rule, multiples, taus, warm_start, options):
+def _kernel_fold(W2d, train, hidden, R, X_start, rule, multiples, taus, warm_start, options, depth_scale):
     with threadpool_limits(1):
         term = OrthographicReprojection(W2d, R, train)
+        if depth_scale is not None:  # the fold's cameras are fixed: L-BFGS in their frames
+            options = {**options, "variables": CameraFrameVariables(R, train, depth_scale)}
         rho_max = options.get("rho_max", 1e4)
         base_gamma = WIDTH_RULES[rule](X_start)
         rows = []
@@ -199,6 +202,7 @@ def select_kernel(
     tnh_options: Mapping | None = None,
     X_start=None,
     camera_options: Mapping | None = None,
+    depth_scale: float | None = None,
     n_jobs: int = 1,
     **regularizer_options,
 ) -> KernelSelection:
@@ -251,6 +255,11 @@ def select_kernel(
     X_start : array, shape (F, 3P), optional
         With ``R``: the refit's start, the TNH on every observed point with ``tnh_options``, when the
         caller has it already (default: computed here).
+    depth_scale : float > 0, optional
+        Run the fold solves (their cameras are fixed: ``R``, or each fold's TNH cameras) and, with
+        ``R``, the refit in :class:`~nldr.nrsfm.CameraFrameVariables` with this scale: the same
+        minimisers, far fewer L-BFGS iterations (docs/REPRODUCTION.md#table-3-solver). Default:
+        L-BFGS on the shapes themselves.
     n_jobs : int >= 1
         Processes over the folds.
     **regularizer_options
@@ -270,6 +279,10 @@ def select_kernel(
     for key in ("gamma", "tau"):
         if key in regularizer_options:
             raise ValueError(f"regularizer option {key!r} is set by select_kernel; remove it")
+    if "variables" in regularizer_options:
+        raise ValueError("regularizer option 'variables' is set by select_kernel (use depth_scale)")
+    if depth_scale is not None:
+        depth_scale = check_positive(depth_scale, "depth_scale")
     n_jobs = check_count(n_jobs, "n_jobs")
     taus = positive_grid(DEFAULT_KERNEL_TAUS if taus is None else taus, "taus")
     multiples = positive_grid(
@@ -302,7 +315,7 @@ def select_kernel(
         starts = [res.x for res in tnh.fold_results_]
         fold_cameras = [res.R for res in tnh.fold_results_]
     args = [
-        (W2d, mask & ~h, h, Rk, Xk, width_rule, multiples, taus, warm_start, regularizer_options)
+        (W2d, mask & ~h, h, Rk, Xk, width_rule, multiples, taus, warm_start, regularizer_options, depth_scale)
         for h, Rk, Xk in zip(folds, fold_cameras, starts, strict=True)
     ]
     per_fold = run_jobs([(_kernel_fold, a) for a in args], n_jobs)
@@ -317,10 +330,12 @@ def select_kernel(
             if X0.shape != (mask.shape[0], 3 * mask.shape[1]):
                 raise ValueError(f"X_start must have shape (F, 3P) = {(mask.shape[0], 3 * mask.shape[1])}")
         gamma = multiple * WIDTH_RULES[width_rule](X0)
+        refit = dict(regularizer_options)
+        if depth_scale is not None:
+            refit["variables"] = CameraFrameVariables(R, mask, depth_scale)
         begin = time.process_time()
-        result = minimize_regularized(
-            OrthographicReprojection(W2d, R, mask), X0, gamma=gamma, tau=tau, **regularizer_options
-        )
+        term = OrthographicReprojection(W2d, R, mask)
+        result = minimize_regularized(term, X0, gamma=gamma, tau=tau, **refit)
         start = (R, X0)
     else:
         R0, X0 = tnh.result_.R, tnh.result_.x
