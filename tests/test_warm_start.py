@@ -9,6 +9,7 @@ from nldr.data_terms import MaskedLeastSquares
 from nldr.regularizer import minimize_regularized, reduced_energy
 
 GAMMA, TAU = 0.3, 0.1
+WARM = {"warm_start": "nystroem", "landmarks": 12}
 SCHEDULE = {"rho0": 1.0, "rho_growth": 10.0, "rho_max": 1e3}
 
 
@@ -26,12 +27,12 @@ def test_final_stages_are_the_exact_solvers_stages_from_the_nystroem_result(prob
     """The composite path is, bit for bit, a Nystroem solve over the first stages followed by the exact
     solver over the last ones from its result: so its answer meets the exact solver's stopping test."""
     term, S0 = problem
-    res = minimize_regularized(
-        term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, warm_start="nystroem", landmarks=12, exact_stages=exact_stages
-    )
+    res = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **WARM, exact_stages=exact_stages)
     rhos = [1.0, 10.0, 100.0, 1e3]
     split = len(rhos) - exact_stages
-    warm = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, rho0=1.0, rho_max=rhos[split - 1], landmarks=12)
+    warm = minimize_regularized(
+        term, S0, gamma=GAMMA, tau=TAU, rho0=1.0, rho_max=rhos[split - 1], landmarks=12
+    )
     exact = minimize_regularized(term, warm.x, gamma=GAMMA, tau=TAU, rho0=rhos[split], rho_max=1e3)
     np.testing.assert_array_equal(res.x, exact.x)
     assert res.fun == exact.fun
@@ -47,7 +48,7 @@ def test_final_stages_are_the_exact_solvers_stages_from_the_nystroem_result(prob
 def test_final_stage_is_a_stationary_point_of_the_exact_energy(problem):
     """Restarting the exact last stage from the answer finds no descent worth one ftol step."""
     term, S0 = problem
-    res = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, warm_start="nystroem", landmarks=12)
+    res = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **WARM)
     again = minimize_regularized(term, res.x, gamma=GAMMA, tau=TAU, rho0=1e3, rho_max=1e3)
     # L-BFGS stopped on a relative decrease <= tol = 1e-10 per iteration (or gtol); a restart from a
     # stationary point can only gain rounding-level and tol-level amounts.
