@@ -29,16 +29,17 @@ def test_final_stages_are_the_exact_solvers_stages_from_the_nystroem_result(prob
     term, S0 = problem
     res = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **WARM, exact_stages=exact_stages)
     rhos = [1.0, 10.0, 100.0, 1e3]
-    split = len(rhos) - exact_stages
+    first_exact = len(rhos) - exact_stages  # solved on the Nystroem kernel, then again exactly
     warm = minimize_regularized(
-        term, S0, gamma=GAMMA, tau=TAU, rho0=1.0, rho_max=rhos[split - 1], landmarks=12
+        term, S0, gamma=GAMMA, tau=TAU, rho0=1.0, rho_max=rhos[first_exact], landmarks=12
     )
-    exact = minimize_regularized(term, warm.x, gamma=GAMMA, tau=TAU, rho0=rhos[split], rho_max=1e3)
+    exact = minimize_regularized(term, warm.x, gamma=GAMMA, tau=TAU, rho0=rhos[first_exact], rho_max=1e3)
     np.testing.assert_array_equal(res.x, exact.x)
     assert res.fun == exact.fun
     np.testing.assert_array_equal(res.C, exact.C)
-    np.testing.assert_array_equal(res.stage_energy[:split], warm.stage_energy)
-    np.testing.assert_array_equal(res.stage_energy[split:], exact.stage_energy)
+    assert res.n_stages == len(rhos) + 1
+    np.testing.assert_array_equal(res.rho_history, rhos[: first_exact + 1] + rhos[first_exact:])
+    np.testing.assert_array_equal(res.stage_energy, np.concatenate([warm.stage_energy, exact.stage_energy]))
     assert res.nit == warm.nit + exact.nit
     # ``fun`` is the exact reduced energy (not the Nystroem one) at the returned x.
     value, _ = reduced_energy(res.x, term, gamma=GAMMA, tau=TAU, rho=1e3, eigensolver="full")

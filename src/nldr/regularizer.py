@@ -353,20 +353,22 @@ def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, e
     ``tols`` is ``(tol of every stage but the last, tol of the last)``; ``report`` holds the
     ``callback``, ``verbose``, ``landmarks`` (None or ``(m, seed)``) and ``approximate_stages`` (how
     many leading stages use the Nystroem kernel when ``landmarks`` is set; the rest are exact) options.
+    ``rhos`` may repeat a weight (a Nystroem stage and then the exact stage at the same rho).
     """
     hint = RankHint()
     landmarks = report.pop("landmarks")
     n_approx = report.pop("approximate_stages", len(rhos))
+    done = [0]  # stages finished so far (stage_end closes each)
     if landmarks is not None:
         idx = landmark_indices(S.shape[0], *landmarks)
         frozen = {}
 
-    def nystroem_here(rho):
-        return landmarks is not None and rhos.index(rho) < n_approx
+    def nystroem_here():
+        return landmarks is not None and done[0] < n_approx
 
     def stage(S, rho, energies):
         tol = tols[1] if rho == rhos[-1] else tols[0]
-        if not nystroem_here(rho):
+        if not nystroem_here():
             return lbfgs_stage(
                 S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint
             )
@@ -379,7 +381,8 @@ def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, e
         return lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies)
 
     def stage_end(S, rho):
-        if nystroem_here(rho):
+        nystroem, done[0] = nystroem_here(), done[0] + 1
+        if nystroem:
             Z, P = frozen["Z"], frozen["P"]
             value, _ = nystroem_value_grad(S, Z, P, data_term, gamma, tau, rho, center)
             l, U = nystroem_factor(S, Z, P, gamma, tau, rho, center)
@@ -477,14 +480,16 @@ def minimize_regularized(
     landmark_seed : int, default=0
         Seed of the landmark draw.
     warm_start : {None, "nystroem"}, default=None
-        Opt-in faster path to an exact answer: "nystroem" runs every stage but the last
-        ``exact_stages`` on the Nystroem kernel (``landmarks`` landmarks, default 100), then the last
-        ``exact_stages`` on the exact kernel warm-started from there, so the returned ``x``, ``fun`` and
-        ``C`` are those of the exact solver's stopping test at rho_max (a local minimum that can differ
-        from the default path's; CPU, energy and SSE against it: docs/PERFORMANCE.md). None: every
-        stage as ``landmarks`` says (the default path, unchanged).
+        Opt-in faster path to an exact answer. "nystroem": with k = ``exact_stages``, run the stages
+        up to the k-th last on the Nystroem kernel (``landmarks`` landmarks, default 100), then the
+        last k stages with the exact kernel, the first of them warm-started from the Nystroem answer
+        at the same rho (so one stage more: ``n_stages`` and ``rho_history`` show both). The returned
+        ``x``, ``fun`` and ``C`` are the exact solver's, meeting its stopping test at rho_max, but
+        possibly in another local minimum than the default path's (CPU, energy and SSE against it:
+        docs/PERFORMANCE.md). With k >= the number of stages, or ``landmarks >= n_samples``: the
+        exact solver throughout. None: the default path, unchanged.
     exact_stages : int >= 1, default=1
-        Number of final stages solved exactly with ``warm_start="nystroem"``; ignored otherwise.
+        k above; ignored unless ``warm_start="nystroem"``.
 
     Returns
     -------
@@ -520,8 +525,10 @@ def minimize_regularized(
     else:
         landmarks = None  # every sample a landmark: the exact kernel costs less
     report = {"callback": callback, "verbose": bool(verbose), "landmarks": landmarks}
-    if warm_start == "nystroem":
-        report["approximate_stages"] = max(len(rhos) - exact_stages, 0)
+    if warm_start == "nystroem" and landmarks is not None and exact_stages < len(rhos):
+        first_exact = len(rhos) - exact_stages  # solved twice: on the Nystroem kernel, then exactly
+        report["approximate_stages"] = first_exact + 1
+        rhos = rhos[: first_exact + 1] + rhos[first_exact:]
     with blas_threads_for(S.shape[0]):  # one BLAS thread on small problems (nldr._threads)
         return _run_stages(
             S.copy(), data_term, gamma, tau, bool(center), rhos, max_inner, (stage_tol, tol), gtol,
