@@ -489,7 +489,8 @@ def minimize_regularized(
         docs/PERFORMANCE.md). With k >= the number of stages, or ``landmarks >= n_samples``: the
         exact solver throughout. None: the default path, unchanged.
     exact_stages : int >= 1, default=1
-        k above; ignored unless ``warm_start="nystroem"``.
+        k above; ignored unless ``warm_start="nystroem"``. At 1000 oil-flow rows k = 1 halved the CPU
+        at p = 0.25 and 0.5 but at p = 0.05 ended higher on 1 mask of 3, where k = 2 did not.
 
     Returns
     -------
