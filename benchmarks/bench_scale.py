@@ -7,11 +7,12 @@ squares; gamma 0.075, tau 0.1, uncentred; schedule rho0 = 1, growth 10, rho_max 
 with ``time.process_time`` and BLAS pinned to one thread (threadpoolctl).
 
 ``--options`` passes keyword arguments to :func:`nldr.regularizer.minimize_regularized` as JSON, e.g.
-``'{"eigensolver": "full"}'``; ``--label`` names the row. To time a previous implementation, run this
-script with ``PYTHONPATH`` pointing at that commit's ``src``.
+``'{"eigensolver": "full"}'`` or ``'{"warm_start": "nystroem", "landmarks": 100, "exact_stages": 2}'``
+(Nystroem stages, then the exact solver's last two stages); ``--label`` names the row. To time a
+previous implementation, run this script with ``PYTHONPATH`` pointing at that commit's ``src``.
 
 Writes (appends to) ``--out``/scale.csv: label, n, p, seed, cpu, nit, sse, sse_mean_imputation,
-final rank, status.
+final energy (at rho_max), final rank, status.
 
 Usage::
 
@@ -89,7 +90,8 @@ def main(argv=None) -> None:
                 pd.DataFrame([row]).to_csv(path, mode="a", header=not path.exists(), index=False)
                 print(
                     f"{args.label} n={n} p={p:g} seed={SEED + k}: {row['cpu']:.2f} CPU s, {row['nit']} it, "
-                    f"SSE {row['sse']:.6f}, rank {row['rank']}, status {row['status']}",
+                    f"SSE {row['sse']:.6f}, energy {row['energy']:.10g}, rank {row['rank']}, "
+                    f"status {row['status']}",
                     flush=True,
                 )
 

@@ -115,8 +115,25 @@ def kernel_factor(l: np.ndarray, U: np.ndarray) -> np.ndarray:
     return C
 
 
-def lbfgs_stage(S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint):
-    """One penalty stage: L-BFGS on the exact reduced energy from S (see :func:`lbfgs_minimize`)."""
+def lbfgs_stage(
+    S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint, variables=None
+):
+    """One penalty stage: L-BFGS on the exact reduced energy from S (see :func:`lbfgs_minimize`).
+
+    With ``variables`` (a linear change of variables S = A(Y), see ``minimize_regularized``) L-BFGS
+    runs on Y, with the gradient A^T(dE/dS); the returned S is A(Y).
+    """
+    if variables is not None:
+
+        def value_grad_y(Y):
+            value, grad, _ = reduced_value_grad(
+                variables.to_samples(Y), data_term, gamma, tau, rho, center, eigensolver, hint
+            )
+            return value, variables.gradient_to_variables(grad)
+
+        Y0 = variables.to_variables(S)
+        Y, nit, ok, why = lbfgs_minimize(value_grad_y, Y0, max_inner, tol, gtol, energies)
+        return variables.to_samples(Y), nit, ok, why
 
     def value_grad(S):
         value, grad, _ = reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver, hint)
