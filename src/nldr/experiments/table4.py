@@ -11,7 +11,8 @@ Section 4.3, with the choices of docs/REPRODUCTION.md#table-4-tnh:
    paper).
 3. For each kernel-width criterion, from the tuned TNH's cameras and shapes: the regularizer of
    Algorithm 1 (tau = 1e-4, width from the TNH shapes) with the cameras and shapes optimised jointly
-   (config ``kernel_cameras: joint``, :func:`~nldr.nrsfm.joint_kernel.kernel_joint_cameras_shapes`)
+   (config ``kernel_cameras: joint``, :func:`~nldr.nrsfm.joint_kernel.kernel_joint_cameras_shapes`;
+   with ``joint_multistart`` the lowest paper energy over the starts of :func:`joint_kernel_stage`)
    or, as before issue 17, alternating with the camera LM (``kernel_cameras: alternate``).
 4. e3D after one global orthogonal alignment per sequence (rotation and reflection), the benchmark's
    ``compareStructs.m`` procedure; the mean camera error in degrees before and after refinement.
@@ -43,7 +44,7 @@ from ..nrsfm import (
 from .base import JobOutput
 from .mocap import WIDTHS, MocapExperiment, Reconstructions, check_sequence, every_nth_frame, setting_label
 
-__all__ = ["ROW_COLUMNS", "Table4Run", "run_sequence", "tuned_tnh", "Table4"]
+__all__ = ["ROW_COLUMNS", "Table4Run", "run_sequence", "tuned_tnh", "joint_kernel_stage", "Table4"]
 
 ROW_COLUMNS = [
     "sequence",
@@ -108,6 +109,7 @@ def run_sequence(
     rho0: float = 1e-3,
     rho_growth: float = 10.0,
     rho_max: float = 10.0,
+    joint_multistart: bool = False,
     progress: Callable[[str], None] | None = None,
     regularizer_options: Mapping | None = None,
 ) -> Table4Run:
@@ -141,6 +143,9 @@ def run_sequence(
         ``n_outer`` is the number of L-BFGS iterations).
     rho0, rho_growth, rho_max
         Penalty schedule of the regularizer (as for Table 3).
+    joint_multistart : bool, default False
+        With ``kernel_cameras="joint"``: keep, per width, the lowest paper energy among the starts of
+        :func:`joint_kernel_stage` (False: the full schedule from the TNH solution only).
     progress : callable, optional
         Receives one line per finished step.
     regularizer_options : mapping, optional
@@ -220,23 +225,39 @@ def run_sequence(
     )
 
     schedule = dict(tau=tau, rho0=rho0, rho_growth=rho_growth, rho_max=rho_max, **(regularizer_options or {}))
-    for width in widths:
+    if kernel_cameras == "joint":
+        start = time.perf_counter()
+        gammas = {width: WIDTHS[width](best.x) for width in widths}
+        joint = joint_kernel_stage(W2d, mask, best.R, best.x, gammas, multistart=joint_multistart, **schedule)
+        seconds = (time.perf_counter() - start) / len(widths)  # the starts are shared between the widths
+        for width in widths:
+            alt, energy = joint[width]
+            record(
+                f"Kernel {width}",
+                alt.x,
+                alt.R,
+                tau,
+                gammas[width],
+                alt.nit,
+                seconds,
+                alt.success,
+                alt.message,
+                energy,
+            )
+    for width in widths if kernel_cameras == "alternate" else ():
         gamma = WIDTHS[width](best.x)
         start = time.perf_counter()
-        if kernel_cameras == "joint":
-            alt = kernel_joint_cameras_shapes(W2d, mask, best.R, best.x, gamma=gamma, **schedule)
-        else:
-            alt = kernel_with_camera_refinement(
-                W2d,
-                mask,
-                best.R,
-                best.x,
-                gamma=gamma,
-                max_outer=kernel_max_outer,
-                tol=kernel_tol,
-                camera_atol_deg=kernel_camera_atol_deg,
-                **schedule,
-            )
+        alt = kernel_with_camera_refinement(
+            W2d,
+            mask,
+            best.R,
+            best.x,
+            gamma=gamma,
+            max_outer=kernel_max_outer,
+            tol=kernel_tol,
+            camera_atol_deg=kernel_camera_atol_deg,
+            **schedule,
+        )
         # the paper's energy at the last penalty weight, comparable between the two camera schemes
         energy = joint_energy(W2d, mask, alt.R, alt.x, gamma=gamma, tau=tau, rho=rho_max)
         record(
@@ -260,6 +281,67 @@ def run_sequence(
         ground_truth=X_gt,
         tau_search=search.history,
     )
+
+
+def joint_kernel_stage(
+    W2d, mask, R0, X0, gammas, *, tau, rho0, rho_growth, rho_max, multistart=True, **options
+):
+    """Table 4's kernel stage with cameras and shapes optimised jointly, for every width.
+
+    The energy (1) of :mod:`~nldr.nrsfm.joint_kernel` has several local minima (per-frame depth
+    reversals of orthographic cameras among them) and which one the penalty method reaches depends on
+    its path. With ``multistart`` every width keeps the lowest paper energy (the energy at ``rho_max``,
+    :func:`~nldr.nrsfm.joint_kernel.joint_energy`; no ground truth) among
+
+    1. the full schedule rho0, rho0 rho_growth, ... from (R0, X0) (the only start without ``multistart``);
+    2. the same schedule without its first stage, from (R0, X0);
+    3. the last stage (rho_max) alone from every other width's solution after 1-2 (one round).
+
+    Parameters
+    ----------
+    W2d : array (F, 2P)
+    mask : bool array (F, P) or None
+    R0 : array (F, 2, 3)
+        Starting cameras (the tuned TNH's).
+    X0 : array (F, 3P)
+        Starting shapes (the tuned TNH's).
+    gammas : dict
+        Width label -> RBF inverse squared width.
+    tau, rho0, rho_growth, rho_max : float
+    multistart : bool, default True
+    **options
+        Further keyword arguments of :func:`~nldr.nrsfm.joint_kernel.kernel_joint_cameras_shapes`.
+
+    Returns
+    -------
+    dict : width label -> (JointKernelResult, paper energy); the result's ``nit`` counts the iterations
+    of all starts run for that width, its ``message`` names the start kept.
+    """
+    schedule = dict(tau=tau, rho_growth=rho_growth, rho_max=rho_max, **options)
+    best, spent = {}, dict.fromkeys(gammas, 0)
+
+    def consider(width, label, R, X, first_rho):
+        res = kernel_joint_cameras_shapes(W2d, mask, R, X, gamma=gammas[width], rho0=first_rho, **schedule)
+        energy = joint_energy(W2d, mask, res.R, res.x, gamma=gammas[width], tau=tau, rho=rho_max)
+        res.message = f"{label} (energy {energy:.10g}): {res.message}"
+        spent[width] += res.nit
+        if width not in best or energy < best[width][1]:
+            best[width] = (res, energy)
+
+    second = rho0 * rho_growth
+    for width in gammas:
+        consider(width, "full schedule", R0, X0, rho0)
+        if multistart and second <= rho_max * (1 + 1e-12):
+            consider(width, "schedule from its second stage", R0, X0, second)
+    if multistart:
+        first = {width: res for width, (res, _) in best.items()}
+        for width in gammas:
+            for other, res in first.items():
+                if other != width:
+                    consider(width, f"last stage from the {other} solution", res.R, res.x, rho_max)
+    for width, (res, _) in best.items():
+        res.nit = spent[width]
+    return best
 
 
 def tuned_tnh(W2d, mask, R0, X_gt, *, log10_tau_bounds, xatol, max_outer, tol):
@@ -319,6 +401,7 @@ class Table4(MocapExperiment):
             kernel_tol=kernel.pop("tol", 1e-4),
             kernel_camera_atol_deg=kernel.pop("camera_atol_deg", None),
             kernel_cameras=settings.get("kernel_cameras", "alternate"),
+            joint_multistart=settings.get("joint_multistart", False),
             progress=progress,
             **kernel,
         )

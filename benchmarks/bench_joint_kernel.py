@@ -1,0 +1,131 @@
+"""Benchmark: Table 4's kernel stage with cameras and shapes optimised jointly, before and after issue 16.
+
+Each case is one Table 4 job (sequence, setting, mask seed): the kernel stage of
+:func:`~nldr.experiments.table4.run_sequence` for both widths from the tuned TNH's cameras and shapes,
+read from that job's output of a finished Table 4 run (``--runs``, default results/runs/table4, the
+``cameras_0``/``shape_0`` arrays of ``<job>.npz``; the TNH search itself is not rerun). Variants:
+
+* ``before``: L-BFGS on the unscaled (Z, q) of :mod:`~nldr.nrsfm.joint_kernel`, full schedule from the
+  TNH solution (the implementation before issue 16; ``precondition=False``);
+* ``scaled``: the same with the per-stage block scaling (``precondition=True``);
+* ``after``: ``scaled`` with the multi-start of :func:`~nldr.experiments.table4.joint_kernel_stage`
+  (Table 4's configuration).
+
+CPU seconds by ``time.process_time`` with BLAS on one thread; the paper's energy at rho_max
+(:func:`~nldr.nrsfm.joint_kernel.joint_energy`) and e3D after one global alignment. ``ref_energy`` and
+``ref_e3d`` are those of the kernel solutions stored in the run's npz (the code that produced the run).
+
+Usage (from the repository root)::
+
+    .venv/bin/python benchmarks/bench_joint_kernel.py --jobs pickup_full_seed2016 drink_full_seed2016
+    .venv/bin/python benchmarks/bench_joint_kernel.py --variants after --runs /path/to/results/runs/table4
+
+Writes results/benchmarks/joint_kernel.csv (one row per job, width and variant).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from threadpoolctl import threadpool_limits
+
+from nldr.datasets import load_mocap
+from nldr.experiments.mocap import WIDTHS
+from nldr.experiments.table4 import joint_kernel_stage
+from nldr.nrsfm.joint_kernel import joint_energy
+from nldr.nrsfm.layout import stack_to_rows
+from nldr.nrsfm.metrics import e3d
+
+OUT = Path("results/benchmarks/joint_kernel.csv")
+VARIANTS = {
+    "before": dict(precondition=False, multistart=False),
+    "scaled": dict(precondition=True, multistart=False),
+    "after": dict(precondition=True, multistart=True),
+}
+SCHEDULE = dict(tau=1e-4, rho0=1e-3, rho_growth=10.0, rho_max=10.0)  # config/config.yaml, table4
+
+
+def case(job: str, runs: Path, data_dir, step: int = 10):
+    """Tracks, mask, TNH start, ground truth and the run's own kernel solutions of one job."""
+    sequence = job.split("_")[0]
+    arrays = np.load(runs / f"{job}.npz")
+    methods = [str(m) for m in arrays["methods"]]
+    seq = load_mocap(sequence, data_dir).subsample(step)
+    stored = {m.split()[-1]: (arrays[f"cameras_{i}"], arrays[f"shape_{i}"]) for i, m in enumerate(methods)}
+    return dict(
+        W2d=stack_to_rows(seq.W, dim=2),
+        X_gt=stack_to_rows(seq.S, dim=3),
+        mask=arrays["mask"],
+        R=arrays[f"cameras_{methods.index('TNH')}"],
+        X=arrays[f"shape_{methods.index('TNH')}"],
+        stored=stored,
+    )
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--runs", type=Path, default=Path("results/runs/table4"))
+    parser.add_argument("--jobs", nargs="*", help="job ids (default: every npz in --runs)")
+    parser.add_argument("--variants", nargs="*", default=list(VARIANTS), choices=list(VARIANTS))
+    parser.add_argument("--data-dir", default=None)
+    parser.add_argument("--out", type=Path, default=OUT)
+    args = parser.parse_args(argv)
+    jobs = args.jobs or sorted(p.stem for p in args.runs.glob("*.npz"))
+    rows = []
+    for job in jobs:
+        c = case(job, args.runs, args.data_dir)
+        P = c["mask"].shape[1]
+        gammas = {width: WIDTHS[width](c["X"]) for width in ("d_max", "d_med")}
+        for variant in args.variants:
+            opts = dict(VARIANTS[variant])
+            with threadpool_limits(1):
+                start = time.process_time()
+                out = joint_kernel_stage(
+                    c["W2d"],
+                    c["mask"],
+                    c["R"],
+                    c["X"],
+                    gammas,
+                    multistart=opts.pop("multistart"),
+                    **SCHEDULE,
+                    **opts,
+                )
+                cpu = time.process_time() - start
+            for width, (res, energy) in out.items():
+                R_ref, X_ref = c["stored"][width]
+                ref = joint_energy(c["W2d"], c["mask"], R_ref, X_ref, gamma=gammas[width], tau=1e-4, rho=10.0)
+                rows.append(
+                    dict(
+                        job=job,
+                        width=width,
+                        variant=variant,
+                        cpu_job=cpu,
+                        nit=res.nit,
+                        energy=energy,
+                        ref_energy=ref,
+                        rel_energy=(energy - ref) / ref,
+                        e3d=e3d(res.x, c["X_gt"], P, align=True),
+                        ref_e3d=e3d(X_ref, c["X_gt"], P, align=True),
+                        converged=res.success,
+                        kept=res.message[:40],
+                    )  # fmt: skip
+                )
+                r = rows[-1]
+                print(
+                    f"{job:26s} {width} {variant:6s} cpu(job)={cpu:6.2f}s nit={r['nit']:6d} "
+                    f"rel.energy={r['rel_energy']:+.2e} e3d={r['e3d']:.5f} (run's {r['ref_e3d']:.5f})",
+                    flush=True,
+                )
+    table = pd.DataFrame(rows)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    table.to_csv(args.out, index=False)
+    per_job = table.groupby(["variant", "job"]).cpu_job.first().groupby("variant")
+    print(per_job.agg(["sum", "mean", "max"]).rename(columns=lambda s: f"cpu_{s}").to_string())
+
+
+if __name__ == "__main__":
+    main()
