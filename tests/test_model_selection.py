@@ -354,3 +354,15 @@ def test_fold_landmarks_score_the_nystroem_fold_solves_by_hand_and_keep_the_refi
     assert again.cv_results_[cols].equals(sel.cv_results_[cols])  # same seed, same answer
     with pytest.raises(ValueError, match="fold_landmarks"):
         select_regularizer(W, mask, fold_landmarks=0, **common)
+    # refit_options reach the refit alone: the fold scores are unchanged, the refit is that call
+    path = {"warm_start": "nystroem", "landmarks": 8, "exact_stages": 2}
+    warm = select_regularizer(W, mask, fold_landmarks=10, refit_options=path, **common)
+    assert warm.cv_results_[cols].equals(sel.cv_results_[cols])
+    refit = minimize_regularized(
+        MaskedLeastSquares(W, mask), mean_impute(W, mask), gamma=warm.gamma_, tau=warm.tau_,
+        isolation_guard=True, **path,
+    )
+    np.testing.assert_array_equal(warm.result_.x, refit.x)
+    assert warm.result_.n_stages == refit.n_stages > sel.result_.n_stages  # one Nystroem stage more
+    with pytest.raises(ValueError, match="refit option 'tau'"):
+        select_regularizer(W, mask, refit_options={"tau": 1.0}, **common)

@@ -33,13 +33,24 @@ from ..regularizer import minimize_regularized
 from .base import Job, JobOutput, summary_stats
 from .table2 import PEER_ROWS, Table2, fit_peer, random_mask
 
-__all__ = ["Selection", "SelectionFull", "METHODS"]
+__all__ = ["Selection", "SelectionFull", "METHODS", "exact_path"]
 
 PAPER = "Ours (paper values)"
 CV = "Ours (CV)"
 ORACLE = "Ours (oracle grid point)"
 #: Row order of the table.
 METHODS = (PAPER, CV, ORACLE, "PPCA (CV)", "PKPCA (CV)", "RKPCA (CV)") + PEER_ROWS
+
+
+def exact_path(settings, p: float) -> dict:
+    """Options of ``minimize_regularized`` for the exact solves at missing share p (config
+    ``exact_path``): {} for the default path, else Nystroem stages then the exact solver's last
+    ``exact_stages`` (``low_p.exact_stages`` at p <= ``low_p.max_p``)."""
+    path = dict(settings.get("exact_path") or {})
+    low = path.pop("low_p", None)
+    if low is not None and p <= low["max_p"]:
+        path["exact_stages"] = low["exact_stages"]
+    return path
 
 
 def _clock() -> tuple[float, float]:
@@ -112,9 +123,11 @@ class Selection(Table2):
             )
             say(f"p={p:g} seed={seed} {method:26s} sse={sse:9.3f} {cpu:7.2f} CPU s {extra}")
 
+        path = exact_path(settings, p)  # how the exact solves reach their answer
+
         def solve(gamma, tau):
             # the refit of select_regularizer makes this same call (exact kernel, isolation guard on)
-            return minimize_regularized(term, S0, gamma=gamma, tau=tau, center=center, **schedule)
+            return minimize_regularized(term, S0, gamma=gamma, tau=tau, center=center, **schedule, **path)
 
         paper = settings["paper"]
         clock = _clock()
@@ -134,6 +147,7 @@ class Selection(Table2):
             rule=settings["rule"],
             random_state=seed,
             fold_landmarks=settings.get("fold_landmarks"),
+            refit_options=path,
             **schedule,
         )
         record(CV, sel.result_.x, clock, tau=sel.tau_, gamma=sel.gamma_)
@@ -228,6 +242,12 @@ class SelectionFull(Selection):
             if m
             else ""
         )
+        path = s.get("exact_path")
+        if path:
+            folds += (
+                f" The exact solves start on a {path['landmarks']}-landmark Nystroem kernel and end with the "
+                "exact solver's last penalty stage(s) (same stopping test; docs/PERFORMANCE.md#scale)."
+            )
         skipped = [b for b in ("PPCA", "PKPCA", "RKPCA") if b not in s["baselines"]]
         skip = (
             f" Not run at this size (CPU cost of their CV, docs/PERFORMANCE.md): {', '.join(skipped)}."

@@ -4,6 +4,7 @@ method is described in :mod:`nldr.model_selection`."""
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -145,6 +146,7 @@ def select_regularizer(
     fold_tol: float = 1e-7,
     fold_gtol: float = 1e-4,
     fold_landmarks: int | None = None,
+    refit_options: Mapping | None = None,
     n_jobs: int = 1,
     score: str = "squared",
     verbose: bool = False,
@@ -202,6 +204,10 @@ def select_regularizer(
     n_jobs : int >= 1, default=1
         Processes over the folds (over the (fold, gamma) pairs if ``warm_gamma`` is False); each
         solve runs on one BLAS thread.
+    refit_options : mapping, optional
+        Further options of the refit's :func:`~nldr.regularizer.minimize_regularized` alone (e.g.
+        ``{"warm_start": "nystroem", "landmarks": 100}``: a faster path to the exact minimum at
+        scale, docs/PERFORMANCE.md#scale); the fold solves do not see them.
     score : {"squared", "absolute"}, default "squared"
         Fold score per hidden entry: squared error, or absolute error (robust to gross outliers among
         the observed entries; :data:`nldr.model_selection.folds.SCORES`).
@@ -229,6 +235,10 @@ def select_regularizer(
     for key in ("gamma", "tau", "center", "isolation_guard"):
         if key in solver_options:
             raise ValueError(f"solver option {key!r} is set by select_regularizer; remove it")
+    refit = dict(refit_options or {})
+    for key in ("gamma", "tau", "center", "isolation_guard"):
+        if key in refit:
+            raise ValueError(f"refit option {key!r} is set by select_regularizer; remove it")
     n_jobs = check_count(n_jobs, "n_jobs")
     score = check_score(score)
     if rule not in ("one_se", "min"):
@@ -280,7 +290,7 @@ def select_regularizer(
             tau=tau,
             center=bool(center),
             isolation_guard=True,
-            **solver_options,
+            **{**solver_options, **refit},
         )
     say(verbose, "select_regularizer", f"refit: {result.message}")
     return RegularizerSelection(tau, gamma, cv_results, result, folds)
