@@ -37,10 +37,10 @@ from ..nrsfm import (
     kernel_with_camera_refinement,
     random_visibility_mask,
     stack_to_rows,
+    tnh_camera_search,
     tnh_with_camera_refinement,
     tune_tau,
 )
-from ..nrsfm.camera_search import tnh_camera_search as tnh_camera_search_at
 from .base import JobOutput
 from .mocap import WIDTHS, MocapExperiment, Reconstructions, check_sequence, every_nth_frame, setting_label
 
@@ -100,7 +100,7 @@ def run_sequence(
     xatol: float = 0.02,
     tnh_max_outer: int = 20_000,
     tnh_tol: float = 1e-8,
-    tnh_camera_search: bool = False,
+    tnh_search: bool = False,
     tau: float = 1e-4,
     widths=("d_max", "d_med"),
     kernel_max_outer: int = 20,
@@ -126,7 +126,7 @@ def run_sequence(
         Brent search interval and tolerance on log10(tau) for TNH.
     tnh_max_outer, tnh_tol
         Alternation limits of :func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement`.
-    tnh_camera_search : bool, default False
+    tnh_search : bool, default False
         After the tau search, improve the alternation at tau* by
         :func:`~nldr.nrsfm.camera_search.tnh_camera_search` (cameras that break the motion re-seated,
         kept only where TNH's energy at tau* drops; no ground truth). The TNH row and the kernel
@@ -215,8 +215,8 @@ def run_sequence(
         tol=tnh_tol,
     )
     searched = ""
-    if tnh_camera_search:
-        found = tnh_camera_search_at(W2d, mask, best, search.tau, max_outer=tnh_max_outer, tol=tnh_tol)
+    if tnh_search:
+        found = tnh_camera_search(W2d, mask, best, search.tau, max_outer=tnh_max_outer, tol=tnh_tol)
         searched = f"; camera search: {found.n_alternations} alternations, {found.message}"
         best = found.best
     record(
@@ -325,7 +325,7 @@ class Table4(MocapExperiment):
             xatol=tnh["xatol"],
             tnh_max_outer=tnh.get("max_outer", 20_000),
             tnh_tol=tnh.get("tol", 1e-8),
-            tnh_camera_search=bool(tnh.get("camera_search", False)),
+            tnh_search=bool(tnh.get("camera_search", False)),
             tau=settings["tau"],
             widths=tuple(settings["widths"]),
             kernel_max_outer=kernel.pop("max_outer", 20),

@@ -9,7 +9,9 @@ Unknown cameras (Table 4): :func:`initialize_cameras` (rigid factorisation,
 :mod:`nldr.nrsfm.factorization`), :func:`tnh_with_camera_refinement` and :func:`tune_tau`
 (:mod:`nldr.nrsfm.unknown_cameras`; the kernel stage with cameras and shapes optimised jointly in
 :mod:`nldr.nrsfm.joint_kernel`) on top of the camera LM and the shape/camera alternation
-(:mod:`nldr.nrsfm.camera_refinement`, :mod:`nldr.nrsfm.rotations`); evaluation up to the global gauge
+(:mod:`nldr.nrsfm.camera_refinement`, :mod:`nldr.nrsfm.rotations`), and :func:`tnh_camera_search`
+(:mod:`nldr.nrsfm.camera_search`: cameras that break the motion re-seated, kept where TNH's energy
+drops); evaluation up to the global gauge
 by :func:`e3d` (``align=True``) and :func:`camera_error`.
 
 Parameters from the tracks alone (:mod:`nldr.nrsfm.selection`): :func:`select_tnh_tau` and
@@ -23,6 +25,7 @@ Every solver result derives from :class:`nldr.result.SolverResult` (``x``, ``fun
 """
 
 from .camera_refinement import CameraShapeResult, refine_cameras_and_shapes
+from .camera_search import CameraSearchResult, tnh_camera_search
 from .factorization import initialize_cameras
 from .joint_kernel import JointKernelResult, joint_energy, kernel_joint_cameras_shapes
 from .kernel_selection import KernelSelection, select_kernel
@@ -84,6 +87,8 @@ __all__ = [
     "JointKernelResult",
     "tune_tau",
     "TauSearchResult",
+    "tnh_camera_search",
+    "CameraSearchResult",
     "visibility_folds",
     "holdout_reprojection_error",
     "select_tnh_tau",
