@@ -8,7 +8,9 @@ Section 4.3, with the choices of docs/REPRODUCTION.md#table-4-tnh:
 2. TNH with the cameras refined in alternation, run to convergence from the rigid cameras for each
    tau (:func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement`); tau chosen by Brent's bounded
    search on log10(tau) minimising e3D against ground truth (an oracle for the baseline, as in the
-   paper).
+   paper). With ``tnh.camera_search`` (config), the alternation at tau* is then continued from
+   re-seated cameras (:func:`~nldr.nrsfm.camera_search.tnh_camera_search`), kept only where TNH's
+   energy at tau* drops: a better optimiser of the same problem, chosen without ground truth.
 3. For each kernel-width criterion, from the tuned TNH's cameras and shapes: the regularizer of
    Algorithm 1 (tau = 1e-4, width from the TNH shapes) with the cameras and shapes optimised jointly
    (config ``kernel_cameras: joint``, :func:`~nldr.nrsfm.joint_kernel.kernel_joint_cameras_shapes`)
