@@ -9,9 +9,11 @@ Unknown cameras (Table 4): :func:`initialize_cameras` (rigid factorisation,
 :mod:`nldr.nrsfm.factorization`), :func:`tnh_with_camera_refinement` and :func:`tune_tau`
 (:mod:`nldr.nrsfm.unknown_cameras`; the kernel stage with cameras and shapes optimised jointly in
 :mod:`nldr.nrsfm.joint_kernel`) on top of the camera LM and the shape/camera alternation
-(:mod:`nldr.nrsfm.camera_refinement`, :mod:`nldr.nrsfm.rotations`); evaluation up to the global gauge
-by :func:`e3d` (``align=True``) and :func:`camera_error`. With known cameras L-BFGS runs best in
-:class:`CameraFrameVariables` (each point in its camera's frame, the unheld directions scaled).
+(:mod:`nldr.nrsfm.camera_refinement`, :mod:`nldr.nrsfm.rotations`), and :func:`tnh_camera_search`
+(:mod:`nldr.nrsfm.camera_search`: cameras that break the motion re-seated, kept where TNH's energy
+drops); evaluation up to the global gauge by :func:`e3d` (``align=True``) and :func:`camera_error`.
+With known cameras L-BFGS runs best in :class:`CameraFrameVariables` (each point in its camera's
+frame, the unheld directions scaled).
 
 Parameters from the tracks alone (:mod:`nldr.nrsfm.selection`): :func:`select_tnh_tau` and
 :func:`select_kernel` choose TNH's tau and the kernel method's tau and width by hold-out
@@ -24,6 +26,7 @@ Every solver result derives from :class:`nldr.result.SolverResult` (``x``, ``fun
 """
 
 from .camera_refinement import CameraShapeResult, refine_cameras_and_shapes
+from .camera_search import CameraSearchResult, tnh_camera_search
 from .factorization import initialize_cameras
 from .joint_kernel import JointKernelResult, joint_energy, kernel_joint_cameras_shapes
 from .kernel_selection import KernelSelection, select_kernel
@@ -87,6 +90,8 @@ __all__ = [
     "JointKernelResult",
     "tune_tau",
     "TauSearchResult",
+    "tnh_camera_search",
+    "CameraSearchResult",
     "visibility_folds",
     "holdout_reprojection_error",
     "select_tnh_tau",

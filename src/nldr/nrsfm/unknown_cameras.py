@@ -38,7 +38,13 @@ from ..regularizer import minimize_regularized
 from ..result import SolverResult, status_from
 from .camera_refinement import CameraShapeResult, refine_cameras_and_shapes
 from .fista import fista_tnh
-from .reprojection import OrthographicReprojection, check_tracks, masked_residual, visibility_weights
+from .reprojection import (
+    OrthographicReprojection,
+    check_shapes,
+    check_tracks,
+    masked_residual,
+    visibility_weights,
+)
 from .svt import soft_threshold_singular_values_gram
 
 __all__ = ["TauSearchResult", "tnh_with_camera_refinement", "kernel_with_camera_refinement", "tune_tau"]
@@ -61,6 +67,7 @@ def tnh_with_camera_refinement(
     camera_max_iter: int = 50,
     callback: Callable[[int, np.ndarray, np.ndarray], None] | None = None,
     svt: Callable[[np.ndarray, float], tuple[np.ndarray, float]] = soft_threshold_singular_values_gram,
+    X0=None,
 ) -> CameraShapeResult:
     """TNH with the cameras refined in alternation, from R0 to convergence of the joint energy.
 
@@ -119,6 +126,9 @@ def tnh_with_camera_refinement(
         Singular value soft-thresholding of the shape step, ``svt(Y, t) -> (X, nuclear norm)``; the
         reference alternation (:mod:`nldr.reference.nrsfm`) passes the full-SVD
         :func:`~nldr.nrsfm.svt.soft_threshold_singular_values`.
+    X0 : array, shape (F, 3P), optional
+        Start of the first shape step (default zeros, the cold start Table 4's protocol uses); the
+        camera search (:mod:`~nldr.nrsfm.camera_search`) passes the shapes it re-fitted.
 
     Returns
     -------
@@ -140,6 +150,10 @@ def tnh_with_camera_refinement(
     # The latest shapes (F, 3, P) and their nuclear norm (warm start and penalty), the number of shape
     # steps so far and the joint energy after the previous camera step (for the shape step's tolerance).
     state = {"X": np.zeros((F, 3, P)), "nuclear": 0.0, "k": 0, "energy": None, "momentum": None}
+    if X0 is not None:
+        X0 = check_shapes(X0, F, P, name="X0")
+        state["X"] = X0.reshape(F, 3, P).copy()
+        state["nuclear"] = float(np.linalg.svd(X0, compute_uv=False).sum())
 
     def shape_step(R):
         X = state["X"]
