@@ -25,7 +25,8 @@ class CameraFrameVariables:
     cameras) and ``D_fj = diag(1, 1, depth_scale)`` if observed, ``depth_scale I`` if not: the
     unheld directions move ``depth_scale`` times further per unit step, which brings their
     curvature towards the data term's. The map is linear and invertible, so the minimisers are
-    the same; only the path of the solver changes (docs/REPRODUCTION.md#table-3-solver).
+    the same; only the path of the solver changes (docs/REPRODUCTION.md#table-3-solver). The
+    methods take and return arrays of shape (F, 3P), shapes as rows (x_1..x_P, y_1..y_P, z_1..z_P).
 
     Parameters
     ----------
@@ -35,8 +36,6 @@ class CameraFrameVariables:
         True where the point is observed.
     depth_scale : float > 0
         Scale of the unheld directions (1: only the rotation).
-
-    Methods take and return arrays of shape (F, 3P), shapes as rows (x_1..x_P, y_1..y_P, z_1..z_P).
     """
 
     def __init__(self, R, mask, depth_scale: float):
