@@ -495,7 +495,10 @@ def minimize_regularized(
         ``x``, ``fun`` and ``C`` are the exact solver's, meeting its stopping test at rho_max, but
         possibly in another local minimum than the default path's (CPU, energy and SSE against it:
         docs/PERFORMANCE.md). With k >= the number of stages, or ``landmarks >= n_samples``: the
-        exact solver throughout. None: the default path, unchanged.
+        exact solver throughout. None: the default path, unchanged. **Not safe for narrow
+        kernels:** on few landmarks a sample far from all of them is isolated, its unobserved
+        entries escape, and the exact stage keeps them there (1000 oil rows, gamma 0.29: SSE 1e9
+        against 142 on the default path; docs/REPRODUCTION.md#selection).
     exact_stages : int >= 1, default=1
         k above; ignored unless ``warm_start="nystroem"``. At 1000 oil-flow rows k = 1 halved the CPU
         at p = 0.25 and 0.5 but at p = 0.05 ended higher on 1 mask of 3, where k = 2 did not.
