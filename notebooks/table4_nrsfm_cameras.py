@@ -15,11 +15,14 @@
 # # Table 4: non-rigid structure from motion with estimated cameras
 #
 # The realistic setting: the cameras are unknown. They start from **rigid factorisation** (a rank-3
-# factorisation of the tracks and a metric upgrade), then every method alternates a shape step with a
-# Levenberg-Marquardt step on each camera's quaternion. **TNH** gets its weight tau tuned per sequence
-# and setting by Brent's search on the 3D error against ground truth, as the paper did (an oracle the
-# kernel method does not get: it keeps tau = 1e-4). Errors are measured after one global rotation
-# (or reflection) per sequence, the gauge left by unknown cameras.
+# factorisation of the tracks and a metric upgrade). **TNH** alternates its shape step with a
+# Levenberg-Marquardt step on each camera's quaternion; its weight tau is tuned per sequence and
+# setting by Brent's search on the 3D error against ground truth, as the paper did (an oracle the
+# kernel method does not get: it keeps tau = 1e-4). At that tau a camera search re-seats cameras that
+# break the motion and keeps them only where TNH's energy drops. The **kernel** method then minimises
+# the paper's energy over cameras and shapes jointly (docs/REPRODUCTION.md#table-4-joint). Errors
+# are measured after one global rotation (or reflection) per sequence, the gauge left by unknown
+# cameras.
 #
 # The runs happened upstream (`snakemake -c all table4`); this notebook reads their outputs.
 
