@@ -237,7 +237,7 @@ def regularized_energy(
 # --------------------------------------------------------------------------------------------------
 
 
-def penalty_schedule(rho0: float, rho_growth: float, rho_max: float) -> list[float]:
+def penalty_schedule(rho0: float, rho_growth: float, rho_max: float, *, floor=None) -> list[float]:
     """The penalty weights of the stages: rho0, rho0 rho_growth, rho0 rho_growth^2, ... <= rho_max.
 
     Parameters
@@ -249,6 +249,8 @@ def penalty_schedule(rho0: float, rho_growth: float, rho_max: float) -> list[flo
     rho_max : float >= rho0
         Last admissible weight (a weight within a relative 1e-12 above it still counts, against
         rounding in the products).
+    floor : float > 0, optional
+        If rho0 < floor: from floor to max(rho_max, floor) (the isolation guard, :func:`isolation_safe_rho0`).
 
     Returns
     -------
@@ -266,6 +268,8 @@ def penalty_schedule(rho0: float, rho_growth: float, rho_max: float) -> list[flo
     while rho <= rho_max * (1.0 + 1e-12):
         rhos.append(rho)
         rho *= rho_growth
+    if floor is not None and rho0 < check_positive(floor, "floor"):
+        return penalty_schedule(floor, rho_growth, max(rho_max, floor))
     return rhos
 
 
@@ -448,9 +452,8 @@ def minimize_regularized(
         L-BFGS also stops when the largest gradient entry is below gtol.
     stage_tol : float > 0, optional
         ``tol`` of every stage but the last; None (default) means ``tol``. The earlier stages only
-        provide the next one's starting point, so a looser value (1e-7) saves about a third of the
-        iterations; but the problem is not convex, and a start further from the previous stage's
-        minimum can lead to another local minimum (docs/PERFORMANCE.md, bench_scale.py).
+        provide the next one's start: 1e-7 saves a third of the iterations, but a start further from
+        the previous minimum can lead to another local minimum (docs/PERFORMANCE.md, bench_scale.py).
     eigensolver : {"auto", "partial", "krylov", "full"}, default="auto"
         The C-step's decomposition. Only eigenpairs above the cubic's threshold survive, so
         "partial" computes just those (LAPACK MRRR) and forms dE/dK = rho (K - C^T C) from them;
@@ -500,8 +503,7 @@ def minimize_regularized(
         entries escape, and the exact stage keeps them there (1000 oil rows, gamma 0.29: SSE 1e9
         against 142 on the default path; docs/REPRODUCTION.md#selection).
     exact_stages : int >= 1, default=1
-        k above; ignored unless ``warm_start="nystroem"``. At 1000 oil-flow rows k = 1 halved the CPU
-        at p = 0.25 and 0.5 but at p = 0.05 ended higher on 1 mask of 3, where k = 2 did not.
+        k above, with ``warm_start="nystroem"`` (1000 oil rows: k = 2 needed at p = 0.05; PERFORMANCE.md).
 
     Returns
     -------
@@ -517,10 +519,8 @@ def minimize_regularized(
     """
     start = time.perf_counter()
     S, gamma, tau = _check_problem(data_term, S0, gamma, tau, name_S="S0")
-    rhos = penalty_schedule(rho0, rho_growth, rho_max)  # validates the schedule as given
-    if isolation_guard and rho0 < isolation_safe_rho0(tau):
-        floor = isolation_safe_rho0(tau)
-        rhos = penalty_schedule(floor, rho_growth, max(rho_max, floor))
+    floor = isolation_safe_rho0(tau) if isolation_guard else None
+    rhos = penalty_schedule(rho0, rho_growth, rho_max, floor=floor)
     max_inner = check_count(3000 if max_inner is None else max_inner, "max_inner")
     tol, gtol = check_positive(tol, "tol"), check_positive(gtol, "gtol")
     stage_tol = tol if stage_tol is None else check_positive(stage_tol, "stage_tol")

@@ -378,19 +378,8 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         nearest, _ = nearest_rows(
             self.X_fit_, X, mask, check_count(n_neighbors, "n_neighbors"), loss=loss, delta=delta
         )
-        X0 = self._starts(X, mask, self.X_fit_[nearest].mean(axis=1, keepdims=True), rho, loss)[:, 0]
-        with blas_threads_for(self.X_fit_.shape[0]):
-            X_hat, _ = complete_rows(
-                self._subspace(),
-                X,
-                mask,
-                X0,
-                rho=rho,
-                loss=loss,
-                delta=delta,
-                max_iter=check_count(max_iter, "max_iter"),
-            )
-        return X_hat
+        mean = self.X_fit_[nearest].mean(axis=1, keepdims=True)
+        return self._complete_from(X, mask, mean, rho, loss, delta, max_iter)[:, 0]
 
     def complete_each(
         self,
@@ -416,7 +405,12 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         nearest, distance = nearest_rows(
             self.X_fit_, X, mask, check_count(n_neighbors, "n_neighbors"), loss=loss, delta=delta
         )
-        X0 = self._starts(X, mask, self.X_fit_[nearest], rho, loss)
+        return self._complete_from(X, mask, self.X_fit_[nearest], rho, loss, delta, max_iter), distance
+
+    def _complete_from(self, X, mask, rows, rho, loss, delta, max_iter):
+        """Solve every row of X (m, d) from each of its k starts built on ``rows`` (m, k, d) ->
+        solutions (m, k, d)."""
+        X0 = self._starts(X, mask, rows, rho, loss)
         (m, k, d) = X0.shape
         with blas_threads_for(self.X_fit_.shape[0]):
             X_hat, _ = complete_rows(
@@ -429,7 +423,7 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
                 delta=delta,
                 max_iter=check_count(max_iter, "max_iter"),
             )
-        return X_hat.reshape(m, k, d), distance
+        return X_hat.reshape(m, k, d)
 
     def _starts(self, X, mask, rows, rho, loss):
         """Starts (m, k, d) from neighbour rows (m, k, d): the observed entries at X (squared loss or

@@ -302,10 +302,8 @@ def kernel_joint_cameras_shapes(
     Q = complete_rotations(check_cameras(R0, F, name="R0"))
     X0 = check_shapes(X0, F, P, name="X0")
     gamma, tau = check_positive(gamma, "gamma"), check_positive(tau, "tau")
-    rhos = penalty_schedule(rho0, rho_growth, rho_max)
-    if isolation_guard and rho0 < isolation_safe_rho0(tau):
-        floor = isolation_safe_rho0(tau)
-        rhos = penalty_schedule(floor, rho_growth, max(rho_max, floor))
+    floor = isolation_safe_rho0(tau) if isolation_guard else None
+    rhos = penalty_schedule(rho0, rho_growth, rho_max, floor=floor)
     max_inner = check_count(max_inner, "max_inner")
     tol, gtol = check_positive(tol, "tol"), check_positive(gtol, "gtol")
     W3, m3 = W.reshape(F, 2, P), vis[:, None, :].astype(float)
