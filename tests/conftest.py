@@ -58,3 +58,22 @@ def synthetic_sequence(n_frames=12, n_points=9, rank=2, seed=0):
     X = coeffs @ basis
     R = np.stack([random_rotation(rng)[:2] for _ in range(n_frames)])
     return X, project(R, X), R
+
+
+def denoising_problem(n=60, d=10, seed=1, hidden_share=1 / 3):
+    """Rows on a smooth 2-d manifold in [0, 1]^d plus Gaussian noise; a third of the entries hidden."""
+    rng = np.random.default_rng(seed)
+    t = rng.random((n, 2))
+    X = 0.5 + 0.5 * np.sin(t @ (3 * rng.normal(size=(2, d))) + 2 * np.pi * rng.random(d))
+    Y = X + 0.1 * rng.normal(size=X.shape)
+    mask = rng.random(X.shape) >= hidden_share
+    return X, np.where(mask, Y, np.nan), mask
+
+
+def within_observed_range(S, W, mask):
+    """Hidden entries inside [min - spread, max + spread] of their column's observed values."""
+    obs = np.where(mask, W, np.nan)
+    low, high = np.nanmin(obs, axis=0), np.nanmax(obs, axis=0)
+    spread = high - low
+    inside = (S >= low - spread) & (S <= high + spread)
+    return bool(np.all(inside[~mask]))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import denoising_problem, within_observed_range
 from threadpoolctl import threadpool_limits
 
 from nldr._spectral import cubic_threshold
@@ -25,16 +26,6 @@ def one_blas_thread():
     """Small matrices: one BLAS thread is faster beside a busy core (docs/DESIGN.md)."""
     with threadpool_limits(1):
         yield
-
-
-def denoising_problem(n=60, d=10, seed=1, hidden_share=1 / 3):
-    """Rows on a smooth 2-d manifold in [0, 1]^d plus Gaussian noise; a third of the entries hidden."""
-    rng = np.random.default_rng(seed)
-    t = rng.random((n, 2))
-    X = 0.5 + 0.5 * np.sin(t @ (3 * rng.normal(size=(2, d))) + 2 * np.pi * rng.random(d))
-    Y = X + 0.1 * rng.normal(size=X.shape)
-    mask = rng.random(X.shape) >= hidden_share
-    return X, np.where(mask, Y, np.nan), mask
 
 
 def fold_error(W, mask, hidden, gamma, tau, **options):
@@ -248,15 +239,6 @@ def test_guard_changes_nothing_when_rho0_is_already_safe():
     plain = minimize_regularized(term, S0, gamma=0.5, tau=0.1, isolation_guard=False)  # rho0 1 >= 0.184
     guarded = minimize_regularized(term, S0, gamma=0.5, tau=0.1, isolation_guard=True)
     np.testing.assert_array_equal(plain.x, guarded.x)
-
-
-def within_observed_range(S, W, mask):
-    """Hidden entries inside [min - spread, max + spread] of their column's observed values."""
-    obs = np.where(mask, W, np.nan)
-    low, high = np.nanmin(obs, axis=0), np.nanmax(obs, axis=0)
-    spread = high - low
-    inside = (S >= low - spread) & (S <= high + spread)
-    return bool(np.all(inside[~mask]))
 
 
 def test_hidden_entries_never_escape_along_the_default_tau_grid():

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import denoising_problem, within_observed_range
 from threadpoolctl import threadpool_limits
 
 from nldr._nystroem import landmark_indices, landmark_map, nystroem_factor, nystroem_value_grad
+from nldr.baselines import mean_impute
 from nldr.data_terms import MaskedLeastSquares
 from nldr.kernels import center_kernel, rbf_kernel
+from nldr.model_selection import median_gamma
 from nldr.regularizer import minimize_regularized, reduced_energy
 
 GAMMA, TAU, RHO = 0.3, 0.1, 10.0
@@ -73,3 +76,28 @@ def test_landmark_solve_is_seeded_and_validated(problem):
     np.testing.assert_array_equal(all_samples.x, exact.x)  # landmarks >= n: the exact solver
     with pytest.raises(ValueError, match="landmarks"):
         minimize_regularized(term, S, gamma=GAMMA, tau=TAU, landmarks=0)
+
+
+def test_an_isolated_sample_pays_what_the_exact_kernel_charges(problem):
+    """Landmarks = every sample but one that is far from all: K~ misses that sample's eigenvalue 1 of K,
+    and the residual diagonal (d = 1 for it, 0 for the landmarks) puts phi(1) back, so the energy is
+    the exact one. Without the correction it would be lower by phi(1) ~ tau."""
+    term, S, _ = problem
+    S = S.copy()
+    S[0] += 100.0  # exp(-0.3 * 1e4 * 4) = 0: row 0 of K is a unit vector
+    Z = S[1:].copy()
+    value, _ = nystroem_value_grad(S, Z, landmark_map(Z, GAMMA), term, GAMMA, TAU, RHO, False)
+    exact, _ = reduced_energy(S, term, gamma=GAMMA, tau=TAU, rho=RHO, center=False, eigensolver="full")
+    assert value == pytest.approx(exact, rel=1e-8)
+
+
+@pytest.mark.parametrize("m", [5, 10, 20])
+def test_hidden_entries_stay_near_the_data_on_few_landmarks(m):
+    """The escape that the residual diagonal removes: on K~ alone, a sample far from every landmark
+    costs nothing, and at the median-rule width every one of these solves sent hidden entries out of
+    their column's range (|entries| up to 1e3 and more, data in [0, 1])."""
+    _, W, mask = denoising_problem()
+    term, S0, gamma = MaskedLeastSquares(W, mask), mean_impute(W, mask), median_gamma(W, mask)
+    for tau in (0.01, 0.1, 1.0):
+        res = minimize_regularized(term, S0, gamma=gamma, tau=tau, landmarks=m)
+        assert within_observed_range(res.x, W, mask), f"hidden entries escaped at tau={tau}, m={m}"
