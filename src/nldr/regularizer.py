@@ -498,10 +498,9 @@ def minimize_regularized(
         ``x``, ``fun`` and ``C`` are the exact solver's, meeting its stopping test at rho_max, but
         possibly in another local minimum than the default path's (CPU, energy and SSE against it:
         docs/PERFORMANCE.md). With k >= the number of stages, or ``landmarks >= n_samples``: the
-        exact solver throughout. None: the default path, unchanged. **Not safe for narrow
-        kernels:** on few landmarks a sample far from all of them is isolated, its unobserved
-        entries escape, and the exact stage keeps them there (1000 oil rows, gamma 0.29: SSE 1e9
-        against 142 on the default path; docs/REPRODUCTION.md#selection).
+        exact solver throughout. None: the default path, unchanged. Narrow kernels: a sample far
+        from every landmark pays its unspanned residual (:mod:`nldr._nystroem`), so its unobserved
+        entries do not escape (1000 oil rows, gamma 0.29: SSE 144 against 142 on the default path).
     exact_stages : int >= 1, default=1
         k above, with ``warm_start="nystroem"`` (1000 oil rows: k = 2 needed at p = 0.05; PERFORMANCE.md).
 
