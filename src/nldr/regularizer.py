@@ -302,16 +302,20 @@ def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, e
 
     ``tols`` is ``(tol of every stage but the last, tol of the last)``; ``report`` holds the
     ``callback``, ``verbose``, ``landmarks`` (None or ``(m, seed)``) and ``approximate_stages`` (how
-    many leading stages use the Nystroem kernel when ``landmarks`` is set; the rest are exact) options.
+    many leading stages use the Nystroem kernel when ``landmarks`` is set; the rest are exact) options,
+    and optionally ``last_landmarks`` (landmarks of the last Nystroem stage) and ``exact_tol`` (the
+    plateau test of the exact stages after Nystroem ones, :func:`nldr._reduced.lbfgs_minimize`).
     ``rhos`` may repeat a weight (a Nystroem stage and then the exact stage at the same rho).
     """
     hint = RankHint()
     landmarks = report.pop("landmarks")
     variables = report.pop("variables", None)
     n_approx = report.pop("approximate_stages", len(rhos))
+    m_last, plateau = report.pop("last_landmarks", None), report.pop("exact_tol", None)
     done = [0]  # stages finished so far (stage_end closes each)
     if landmarks is not None:
         idx = landmark_indices(S.shape[0], *landmarks)
+        idx_last = idx if m_last is None else landmark_indices(S.shape[0], m_last, landmarks[1])
         frozen = {}
 
     def nystroem_here():
@@ -321,8 +325,8 @@ def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, e
         tol = tols[1] if rho == rhos[-1] else tols[0]
         if not nystroem_here():  # exact kernel; L-BFGS on S, or on Y with S = variables.to_samples(Y)
             args = (S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint)
-            return lbfgs_stage(*args, variables)
-        frozen["Z"] = Z = S[idx].copy()  # the landmarks stay where they are during the stage
+            return lbfgs_stage(*args, variables, plateau=None if landmarks is None else plateau)
+        frozen["Z"] = Z = S[idx_last if done[0] == n_approx - 1 else idx].copy()  # fixed during the stage
         frozen["P"] = P = landmark_map(Z, gamma)
 
         def value_grad(S):
@@ -366,6 +370,8 @@ def minimize_regularized(
     variables=None,
     warm_start: str | None = None,
     exact_stages: int = 1,
+    exact_tol: float | None = None,
+    last_landmarks: int | None = None,
 ) -> RegularizerResult:
     """Minimise ``f(S) + rho/2 ||K(S) - C^T C||_F^2 + tau ||C||_*`` by the penalty method.
 
@@ -450,6 +456,14 @@ def minimize_regularized(
         against 142 on the default path; docs/REPRODUCTION.md#selection).
     exact_stages : int >= 1, default=1
         k above, with ``warm_start="nystroem"`` (1000 oil rows: k = 2 needed at p = 0.05; PERFORMANCE.md).
+    exact_tol : float > 0, optional
+        With ``warm_start="nystroem"``: the exact stages after the Nystroem ones also stop once the
+        energy fell by at most ``exact_tol`` (relative) per iteration on average over the last 10
+        iterations; the answer then need not meet the ``tol`` test (its energy gap to the converged
+        one, 1000 oil rows: docs/PERFORMANCE.md). None (default): ``tol`` and ``gtol`` only.
+    last_landmarks : int, optional
+        With ``warm_start="nystroem"``: the number of landmarks of the last Nystroem stage (drawn from
+        ``landmark_seed``); None (default): ``landmarks``.
 
     Returns
     -------
@@ -478,16 +492,23 @@ def minimize_regularized(
     if warm_start not in (None, "nystroem"):
         raise ValueError(f"warm_start must be None or 'nystroem'; got {warm_start!r}")
     exact_stages = check_count(exact_stages, "exact_stages")
+    exact_tol = None if exact_tol is None else check_positive(exact_tol, "exact_tol")
+    last_landmarks = None if last_landmarks is None else check_count(last_landmarks, "last_landmarks")
+    if (exact_tol is not None or last_landmarks is not None) and warm_start != "nystroem":
+        raise ValueError("exact_tol and last_landmarks need warm_start='nystroem'")
     if warm_start == "nystroem" and landmarks is None:
         landmarks = 100
     if landmarks is not None and check_count(landmarks, "landmarks") < S.shape[0]:
         landmarks = (landmarks, int(landmark_seed))
     else:
         landmarks = None  # every sample a landmark: the exact kernel costs less
+    if warm_start == "nystroem" and exact_stages >= len(rhos):
+        landmarks = None  # every stage exact: the exact solver throughout
     report = {"callback": callback, "verbose": bool(verbose), "landmarks": landmarks}
-    if warm_start == "nystroem" and landmarks is not None and exact_stages < len(rhos):
+    if warm_start == "nystroem" and landmarks is not None:
         first_exact = len(rhos) - exact_stages  # solved twice: on the Nystroem kernel, then exactly
         report["approximate_stages"] = first_exact + 1
+        report |= {"exact_tol": exact_tol, "last_landmarks": last_landmarks}
         rhos = rhos[: first_exact + 1] + rhos[first_exact:]
     with blas_threads_for(S.shape[0]):  # one BLAS thread on small problems (nldr._threads)
         return _run_stages(
