@@ -130,7 +130,8 @@ def test_last_landmarks_changes_only_the_last_nystroem_stage(problem):
 
 def test_exact_tol_and_last_landmarks_are_validated(problem):
     term, S0 = problem
-    for name, bad in (("exact_tol", 0.0), ("exact_tol", -1e-6), ("last_landmarks", 0), ("last_landmarks", 2.5)):
+    bad_values = (("exact_tol", 0.0), ("exact_tol", -1e-6), ("last_landmarks", 0), ("last_landmarks", 2.5))
+    for name, bad in bad_values:
         with pytest.raises(ValueError, match=name):
             minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **WARM, **{name: bad})
     for name, value in (("exact_tol", 1e-6), ("last_landmarks", 20)):
