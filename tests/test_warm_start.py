@@ -75,3 +75,65 @@ def test_warm_start_is_validated(problem):
             minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, warm_start="nystroem", exact_stages=bad)
     with pytest.raises(ValueError, match="landmarks"):
         minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, warm_start="nystroem", landmarks=0)
+
+
+def test_all_exact_stages_with_few_landmarks_is_the_exact_solver(problem):
+    """exact_stages >= the number of stages: the exact solver throughout, even with landmarks < n."""
+    term, S0 = problem
+    base = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE)
+    other = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **WARM, exact_stages=4)
+    np.testing.assert_array_equal(other.x, base.x)
+    assert other.fun == base.fun and other.nit == base.nit
+
+
+def test_exact_tol_stops_the_exact_stage_on_an_energy_plateau(problem):
+    """With exact_tol the exact stage is the same L-BFGS run cut at the first iteration where the
+    energy fell by at most 10 * exact_tol * max(|E|, 1) over the last 10 iterations."""
+    term, S0 = problem
+    full = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **WARM)
+    exact_tol = 3e-4
+    cut = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **WARM, exact_tol=exact_tol)
+    last = cut.stage_of_iteration == cut.n_stages - 1
+    full_last = full.energy_history[full.stage_of_iteration == full.n_stages - 1]
+    energies = cut.energy_history[last]
+    k = energies.size
+    assert 10 <= k < full_last.size  # the rule cut the run short, after a full window
+    # The same iterates up to the cut (the rule only stops L-BFGS, it does not change its steps).
+    np.testing.assert_array_equal(energies, full_last[:k])
+    np.testing.assert_array_equal(cut.energy_history[~last], full.energy_history[: (~last).sum()])
+    # E_0: the exact energy at the Nystroem answer (the stage's start).
+    start = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, landmarks=12)
+    e0, _ = reduced_energy(start.x, term, gamma=GAMMA, tau=TAU, rho=1e3)
+    history = np.concatenate([[e0], energies])
+    decrease = history[:-10] - history[10:]  # over 10 iterations, ending at iterations 10 .. k
+    bound = 10 * exact_tol * np.maximum(np.abs(history[10:]), 1.0)
+    assert decrease[-1] <= bound[-1] and np.all(decrease[:-1] > bound[:-1])
+    assert cut.fun == energies[-1]
+    value, _ = reduced_energy(cut.x, term, gamma=GAMMA, tau=TAU, rho=1e3, eigensolver="full")
+    assert cut.fun == pytest.approx(value, rel=1e-12)
+    assert cut.status == 0 and cut.fun >= full.fun - 1e-12 * abs(full.fun)
+
+
+def test_last_landmarks_changes_only_the_last_nystroem_stage(problem):
+    """last_landmarks = m2: the warm start's stages are the m-landmark solve up to the last Nystroem
+    stage, then that stage on m2 landmarks (same seed), then the exact stage."""
+    term, S0 = problem
+    res = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **WARM, last_landmarks=20)
+    early = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, rho0=1.0, rho_max=100.0, landmarks=12)
+    late = minimize_regularized(term, early.x, gamma=GAMMA, tau=TAU, rho0=1e3, rho_max=1e3, landmarks=20)
+    exact = minimize_regularized(term, late.x, gamma=GAMMA, tau=TAU, rho0=1e3, rho_max=1e3)
+    np.testing.assert_array_equal(res.x, exact.x)
+    np.testing.assert_array_equal(res.stage_energy, np.concatenate([early.stage_energy, late.stage_energy,
+                                                                    exact.stage_energy]))  # fmt: skip
+    assert res.nit == early.nit + late.nit + exact.nit
+
+
+def test_exact_tol_and_last_landmarks_are_validated(problem):
+    term, S0 = problem
+    bad_values = (("exact_tol", 0.0), ("exact_tol", -1e-6), ("last_landmarks", 0), ("last_landmarks", 2.5))
+    for name, bad in bad_values:
+        with pytest.raises(ValueError, match=name):
+            minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **WARM, **{name: bad})
+    for name, value in (("exact_tol", 1e-6), ("last_landmarks", 20)):
+        with pytest.raises(ValueError, match="warm_start"):
+            minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **{name: value})

@@ -41,6 +41,7 @@ __all__ = [
     "kernel_factor",
     "lbfgs_stage",
     "lbfgs_minimize",
+    "PLATEAU_WINDOW",
     "StageInfo",
 ]
 
@@ -116,12 +117,14 @@ def kernel_factor(l: np.ndarray, U: np.ndarray) -> np.ndarray:
 
 
 def lbfgs_stage(
-    S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint, variables=None
-):
+    S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint, variables=None,
+    plateau=None,
+):  # fmt: skip
     """One penalty stage: L-BFGS on the exact reduced energy from S (see :func:`lbfgs_minimize`).
 
     With ``variables`` (a linear change of variables S = A(Y), see ``minimize_regularized``) L-BFGS
-    runs on Y, with the gradient A^T(dE/dS); the returned S is A(Y).
+    runs on Y, with the gradient A^T(dE/dS); the returned S is A(Y). ``plateau``: see
+    :func:`lbfgs_minimize`.
     """
     if variables is not None:
 
@@ -132,28 +135,46 @@ def lbfgs_stage(
             return value, variables.gradient_to_variables(grad)
 
         Y0 = variables.to_variables(S)
-        Y, nit, ok, why = lbfgs_minimize(value_grad_y, Y0, max_inner, tol, gtol, energies)
+        Y, nit, ok, why = lbfgs_minimize(value_grad_y, Y0, max_inner, tol, gtol, energies, plateau)
         return variables.to_samples(Y), nit, ok, why
 
     def value_grad(S):
         value, grad, _ = reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver, hint)
         return value, grad
 
-    return lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies)
+    return lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies, plateau)
 
 
-def lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies):
+#: Iterations over which ``lbfgs_minimize(plateau=...)`` averages the energy's decrease.
+PLATEAU_WINDOW = 10
+
+
+def lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies, plateau=None):
     """Minimise ``value_grad(S) -> (value, gradient of S's shape)`` by L-BFGS from S.
 
     Appends the energy after every iteration to ``energies``; returns ``(S, nit, converged, message)``.
+    ``plateau`` (optional, > 0): also stop once the energy fell by at most ``plateau`` (relative,
+    ``max(|E|, 1)``) per iteration on average over the last :data:`PLATEAU_WINDOW` iterations, i.e.
+    ``E_{k-w} - E_k <= w * plateau * max(|E_k|, 1)`` with E_0 the energy at the start S.
     """
     shape = S.shape
+    history: list[float] = []  # E_0 (at S), then the energy after every iteration
+    stopped = []  # set when the plateau test ended the run
+    w = PLATEAU_WINDOW
 
     def fun(x):
         value, grad = value_grad(x.reshape(shape))
+        if not history:
+            history.append(float(value))  # L-BFGS-B evaluates the start first
         return value, grad.ravel()
+
     def record(intermediate_result):
         energies.append(float(intermediate_result.fun))
+        history.append(float(intermediate_result.fun))
+        if plateau is not None and len(history) > w:
+            if history[-1 - w] - history[-1] <= w * plateau * max(abs(history[-1]), 1.0):
+                stopped.append(True)
+                raise StopIteration  # scipy ends the run here and returns this iterate
 
     res = minimize(
         fun,
@@ -165,8 +186,11 @@ def lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies):
     )
     # status 0: tolerance met; 1: iteration or evaluation limit; 2: line search could not make
     # progress, which at these tolerances means rounding noise at the minimum.
-    converged = res.status != 1
-    return res.x.reshape(shape), int(res.nit), converged, str(res.message)
+    converged = res.status != 1 or bool(stopped)
+    message = str(res.message)
+    if stopped:
+        message = f"energy plateau: relative decrease <= {plateau:g} per iteration over the last {w}"
+    return res.x.reshape(shape), int(res.nit), converged, message
 
 
 @dataclass(frozen=True)

@@ -53,6 +53,7 @@ from ._reduced import (
     rbf,
     reduced_value_grad,
 )
+from ._schedule import isolation_safe_rho0, penalty_schedule
 from ._spectral import check_eigensolver, spectrum
 from ._threads import blas_threads_for
 from ._validation import as_float_matrix, check_count, check_positive
@@ -237,61 +238,6 @@ def regularized_energy(
 # --------------------------------------------------------------------------------------------------
 
 
-def penalty_schedule(rho0: float, rho_growth: float, rho_max: float, *, floor=None) -> list[float]:
-    """The penalty weights of the stages: rho0, rho0 rho_growth, rho0 rho_growth^2, ... <= rho_max.
-
-    Parameters
-    ----------
-    rho0 : float > 0
-        First penalty weight.
-    rho_growth : float > 1
-        Factor between consecutive weights.
-    rho_max : float >= rho0
-        Last admissible weight (a weight within a relative 1e-12 above it still counts, against
-        rounding in the products).
-    floor : float > 0, optional
-        If rho0 < floor: from floor to max(rho_max, floor) (the isolation guard, :func:`isolation_safe_rho0`).
-
-    Returns
-    -------
-    rhos : list of float
-        One weight per stage, increasing; never empty.
-    """
-    rho0 = check_positive(rho0, "rho0")
-    rho_growth = check_positive(rho_growth, "rho_growth")
-    if rho_growth <= 1.0:
-        raise ValueError(f"rho_growth must be > 1 so that the penalty increases; got {rho_growth!r}")
-    rho_max = check_positive(rho_max, "rho_max")
-    if rho_max < rho0:
-        raise ValueError(f"rho_max must be >= rho0 = {rho0!r}; got {rho_max!r}")
-    rhos, rho = [], rho0
-    while rho <= rho_max * (1.0 + 1e-12):
-        rhos.append(rho)
-        rho *= rho_growth
-    if floor is not None and rho0 < check_positive(floor, "floor"):
-        return penalty_schedule(floor, rho_growth, max(rho_max, floor))
-    return rhos
-
-
-def isolation_safe_rho0(tau: float) -> float:
-    """Smallest penalty weight whose threshold keeps an isolated sample's eigenvalue: tau sqrt(27/8).
-
-    At rho >= tau sqrt(27/8) the cubic's threshold lambda_star(tau, rho) is <= 1, so the first stage of
-    the penalty method no longer rewards pushing unobserved coordinates away from the data (see the
-    module's maintenance note on the isolation guard).
-
-    Parameters
-    ----------
-    tau : float > 0
-        Trace-norm weight.
-
-    Returns
-    -------
-    rho : float
-    """
-    return check_positive(tau, "tau") * np.sqrt(27.0 / 8.0)
-
-
 def penalty_method(
     S, rhos, stage, stage_end, *, start: float, callback=None, verbose=False
 ) -> RegularizerResult:
@@ -356,16 +302,20 @@ def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, e
 
     ``tols`` is ``(tol of every stage but the last, tol of the last)``; ``report`` holds the
     ``callback``, ``verbose``, ``landmarks`` (None or ``(m, seed)``) and ``approximate_stages`` (how
-    many leading stages use the Nystroem kernel when ``landmarks`` is set; the rest are exact) options.
+    many leading stages use the Nystroem kernel when ``landmarks`` is set; the rest are exact) options,
+    and optionally ``last_landmarks`` (landmarks of the last Nystroem stage) and ``exact_tol`` (the
+    plateau test of the exact stages after Nystroem ones, :func:`nldr._reduced.lbfgs_minimize`).
     ``rhos`` may repeat a weight (a Nystroem stage and then the exact stage at the same rho).
     """
     hint = RankHint()
     landmarks = report.pop("landmarks")
     variables = report.pop("variables", None)
     n_approx = report.pop("approximate_stages", len(rhos))
+    m_last, plateau = report.pop("last_landmarks", None), report.pop("exact_tol", None)
     done = [0]  # stages finished so far (stage_end closes each)
     if landmarks is not None:
         idx = landmark_indices(S.shape[0], *landmarks)
+        idx_last = idx if m_last is None else landmark_indices(S.shape[0], m_last, landmarks[1])
         frozen = {}
 
     def nystroem_here():
@@ -375,8 +325,8 @@ def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, e
         tol = tols[1] if rho == rhos[-1] else tols[0]
         if not nystroem_here():  # exact kernel; L-BFGS on S, or on Y with S = variables.to_samples(Y)
             args = (S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint)
-            return lbfgs_stage(*args, variables)
-        frozen["Z"] = Z = S[idx].copy()  # the landmarks stay where they are during the stage
+            return lbfgs_stage(*args, variables, plateau=None if landmarks is None else plateau)
+        frozen["Z"] = Z = S[idx_last if done[0] == n_approx - 1 else idx].copy()  # fixed during the stage
         frozen["P"] = P = landmark_map(Z, gamma)
 
         def value_grad(S):
@@ -420,6 +370,8 @@ def minimize_regularized(
     variables=None,
     warm_start: str | None = None,
     exact_stages: int = 1,
+    exact_tol: float | None = None,
+    last_landmarks: int | None = None,
 ) -> RegularizerResult:
     """Minimise ``f(S) + rho/2 ||K(S) - C^T C||_F^2 + tau ||C||_*`` by the penalty method.
 
@@ -503,6 +455,14 @@ def minimize_regularized(
         entries do not escape (1000 oil rows, gamma 0.29: SSE 144 against 142 on the default path).
     exact_stages : int >= 1, default=1
         k above, with ``warm_start="nystroem"`` (1000 oil rows: k = 2 needed at p = 0.05; PERFORMANCE.md).
+    exact_tol : float > 0, optional
+        With ``warm_start="nystroem"``: the exact stages after the Nystroem ones also stop once the
+        energy fell by at most ``exact_tol`` (relative) per iteration on average over the last 10
+        iterations; the answer then need not meet the ``tol`` test (its energy gap to the converged
+        one, 1000 oil rows: docs/PERFORMANCE.md). None (default): ``tol`` and ``gtol`` only.
+    last_landmarks : int, optional
+        With ``warm_start="nystroem"``: the number of landmarks of the last Nystroem stage (drawn from
+        ``landmark_seed``); None (default): ``landmarks``.
 
     Returns
     -------
@@ -531,16 +491,23 @@ def minimize_regularized(
     if warm_start not in (None, "nystroem"):
         raise ValueError(f"warm_start must be None or 'nystroem'; got {warm_start!r}")
     exact_stages = check_count(exact_stages, "exact_stages")
+    exact_tol = None if exact_tol is None else check_positive(exact_tol, "exact_tol")
+    last_landmarks = None if last_landmarks is None else check_count(last_landmarks, "last_landmarks")
+    if (exact_tol is not None or last_landmarks is not None) and warm_start != "nystroem":
+        raise ValueError("exact_tol and last_landmarks need warm_start='nystroem'")
     if warm_start == "nystroem" and landmarks is None:
         landmarks = 100
     if landmarks is not None and check_count(landmarks, "landmarks") < S.shape[0]:
         landmarks = (landmarks, int(landmark_seed))
     else:
         landmarks = None  # every sample a landmark: the exact kernel costs less
+    if warm_start == "nystroem" and exact_stages >= len(rhos):
+        landmarks = None  # every stage exact: the exact solver throughout
     report = {"callback": callback, "verbose": bool(verbose), "landmarks": landmarks}
-    if warm_start == "nystroem" and landmarks is not None and exact_stages < len(rhos):
+    if warm_start == "nystroem" and landmarks is not None:
         first_exact = len(rhos) - exact_stages  # solved twice: on the Nystroem kernel, then exactly
         report["approximate_stages"] = first_exact + 1
+        report |= {"exact_tol": exact_tol, "last_landmarks": last_landmarks}
         rhos = rhos[: first_exact + 1] + rhos[first_exact:]
     with blas_threads_for(S.shape[0]):  # one BLAS thread on small problems (nldr._threads)
         return _run_stages(
