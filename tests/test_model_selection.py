@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 from conftest import denoising_problem, within_observed_range
 from threadpoolctl import threadpool_limits
@@ -178,7 +179,7 @@ def test_warm_gamma_chains_the_first_solves_of_the_gammas_by_hand():
         assert row["mean_test_error"] == pytest.approx(np.mean(errs), rel=1e-12)
 
 
-def test_one_se_rule_picks_the_smallest_tau_within_one_standard_error_of_the_minimum():
+def test_one_se_rule_picks_the_smallest_tau_then_the_widest_kernel_within_one_standard_error():
     _, W, mask = denoising_problem(n=25, d=5)
     taus = [0.01, 0.1, 1.0, 10.0]
     one_se = select_regularizer(W, mask, taus=taus, n_folds=3, random_state=1)
@@ -192,7 +193,25 @@ def test_one_se_rule_picks_the_smallest_tau_within_one_standard_error_of_the_min
     chosen = cv[(cv["tau"] == one_se.tau_) & (cv["gamma"] == one_se.gamma_)].iloc[0]
     assert chosen["mean_test_error"] <= bound
     assert one_se.tau_ == close["tau"].min()
-    assert chosen["mean_test_error"] == close[close["tau"] == one_se.tau_]["mean_test_error"].min()
+    assert one_se.gamma_ == close[close["tau"] == one_se.tau_]["gamma"].min()
+
+
+def test_one_se_tie_break_prefers_the_widest_kernel_over_a_lower_error():
+    """Within one SE and at the smallest tau, the widest kernel wins even with a higher mean error."""
+    from nldr.model_selection.regularizer import _choose
+
+    cv = pd.DataFrame(
+        {
+            "tau": [0.01, 0.01, 0.01, 0.1],
+            "gamma": [0.5, 0.1, 2.0, 0.1],
+            "mean_test_error": [1.00, 1.02, 1.01, 0.99],
+            "std_test_error": [0.1, 0.1, 0.1, 0.1],  # bound 0.99 + 0.1 / sqrt(4) = 1.04: all close
+        }
+    )
+    assert _choose(cv, "one_se", n_folds=4) == 1  # tau 0.01, gamma 0.1
+    assert _choose(cv, "min", n_folds=4) == 3
+    cv.loc[1, "mean_test_error"] = 1.05  # now outside the bound: the widest close one is gamma 0.5
+    assert _choose(cv, "one_se", n_folds=4) == 0
 
 
 def test_early_stop_leaves_the_solved_scores_unchanged_and_skips_only_the_end_of_a_path():

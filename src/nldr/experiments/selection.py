@@ -204,7 +204,11 @@ class Selection(Table2):
             if s["holdout"] is None
             else f"{s['n_folds']} folds each hiding {s['holdout']:.0%} of them"
         )
-        rule = "the best" if s["rule"] == "min" else "the smallest tau within one standard error of the best"
+        rule = (
+            "the best"
+            if s["rule"] == "min"
+            else "the smallest tau, then the widest kernel, within one standard error of the best"
+        )
         return (
             f"Selection (not in the paper): oil-flow completion (first {s['n_rows']} training rows, Table "
             f"2's masks), sum of squared errors, mean ± sd over {s['n_masks']} masks per p. Ours with the "

@@ -124,9 +124,10 @@ def _choose(cv_results: pd.DataFrame, rule: str, n_folds: int) -> int:
         return best
     bound = mean[best] + cv_results["std_test_error"].to_numpy()[best] / np.sqrt(n_folds)
     close = np.flatnonzero(mean <= bound)
-    taus = cv_results["tau"].to_numpy()
+    taus, gammas = cv_results["tau"].to_numpy(), cv_results["gamma"].to_numpy()
     smallest = close[taus[close] == taus[close].min()]
-    return int(smallest[np.argmin(mean[smallest])])
+    widest = smallest[gammas[smallest] == gammas[smallest].min()]
+    return int(widest[np.argmin(mean[widest])])
 
 
 def select_regularizer(
@@ -178,7 +179,8 @@ def select_regularizer(
     rule : {"one_se", "min"}, default="one_se"
         "min": the candidate with the smallest mean hold-out error. "one_se": among the candidates whose
         mean error is within one standard error (``std_test_error / sqrt(n_folds)``) of that minimum,
-        the smallest tau, and among those the smallest mean error (module docstring, "Rule").
+        the smallest tau, and among those the widest kernel (smallest gamma), then the smallest mean
+        error (module docstring, "Rule").
     warm_start : bool, default=True
         Solve each (fold, gamma) path from the smallest tau up, warm-starting every candidate after the
         first from its neighbour with the last penalty stage only (module docstring). False solves every
