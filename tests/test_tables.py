@@ -71,3 +71,12 @@ def test_html_table_is_a_page_with_the_same_cells_as_markdown():
         for c in line.strip("|").split("|")
     }
     assert all(f"<td>{c}</td>" in page for c in md_cells if c)
+
+
+def test_legend_says_when_the_paper_has_no_numbers():
+    t = pd.DataFrame([("p=0.1", "Ours", "sse", 6.04, 6.0)], columns=tables.TABLE_COLUMNS)
+    assert "Cells: ours (paper)." in tables.to_markdown(t)
+    assert "Cells: ours (paper)." in tables.to_html(t)
+    none = t.assign(paper=np.nan)
+    for text in (tables.to_markdown(none), tables.to_html(none)):
+        assert "(paper)" not in text and "the paper publishes no numbers" in text

@@ -73,6 +73,13 @@ def _wide(table: pd.DataFrame, digits: int, metrics=None, transpose: bool = Fals
     return wide.T.rename_axis("method") if transpose else wide
 
 
+def _legend(table: pd.DataFrame) -> str:
+    """The line under a rendered table: what its cells hold."""
+    if pd.to_numeric(table["paper"], errors="coerce").notna().any():
+        return "Cells: ours (paper)."
+    return "Cells: ours; the paper publishes no numbers for this table."
+
+
 def _isnan(x) -> bool:
     return x is None or (isinstance(x, float) and math.isnan(x))
 
@@ -94,7 +101,7 @@ def to_markdown(
     for setting, row in wide.iterrows():
         lines.append("| " + " | ".join([str(setting), *row.tolist()]) + " |")
     lines.append("")
-    lines.append("Cells: ours (paper).")
+    lines.append(_legend(table))
     return "\n".join(lines) + "\n"
 
 
@@ -133,7 +140,7 @@ def to_html(
     if title:
         opening = grid.index(">", grid.index("<table")) + 1
         grid = grid[:opening] + f"<caption>{html.escape(title)}</caption>" + grid[opening:]
-    body = grid + '\n<p class="note">Cells: ours (paper).</p>'
+    body = grid + f'\n<p class="note">{_legend(table)}</p>'
     return html_page(title or "table", body)
 
 
