@@ -26,7 +26,8 @@ one standard error of the smallest, the one with the smallest tau, then the wide
 gamma), then the smallest error. Widest: the one-SE rule's usual direction, the smoothest of the tied
 models. Where the widths tie, the hold-out cannot tell them apart, and a narrow kernel's advantage is
 the fragile one (see "Limit" below); on 40 masks at 100 rows and 12 at 1000 rows (Table 2's protocol)
-this tie-break changed 7 choices, 6 to a lower SSE (docs/REPRODUCTION.md#selection). On
+this tie-break changed 7 choices, 6 to a lower SSE; on 30 fresh masks at 100 rows, 2 (one lower,
+one higher) (docs/REPRODUCTION.md#selection). On
 Table 2's protocol the hold-out error is flat in tau from 0.01 to about 1 within that error, so
 ``"min"`` picks among ties by noise; and a fold solve at a larger tau is warm-started from its
 smaller-tau neighbour and stays near it, while the refit starts cold and can land elsewhere (with
