@@ -71,7 +71,7 @@ summary = cv.groupby("p").agg(
     tau=("tau", "median"), gamma=("gamma", "median"), solves=("solves", "mean"), seconds=("seconds", "mean")
 )
 oracle = all_runs[all_runs["method"] == "Ours (oracle grid point)"].groupby("p")[["tau", "gamma"]].median()
-summary.join(oracle, rsuffix=" (oracle)").round(4)
+summary.join(oracle.add_suffix(" (oracle)")).round(4)
 
 # %% [markdown]
 # ## CV curves against the oracle's
