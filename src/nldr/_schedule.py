@@ -37,12 +37,12 @@ def penalty_schedule(rho0: float, rho_growth: float, rho_max: float, *, floor=No
     rho_max = check_positive(rho_max, "rho_max")
     if rho_max < rho0:
         raise ValueError(f"rho_max must be >= rho0 = {rho0!r}; got {rho_max!r}")
+    if floor is not None and rho0 < check_positive(floor, "floor"):
+        rho0, rho_max = floor, max(rho_max, floor)
     rhos, rho = [], rho0
     while rho <= rho_max * (1.0 + 1e-12):
         rhos.append(rho)
         rho *= rho_growth
-    if floor is not None and rho0 < check_positive(floor, "floor"):
-        return penalty_schedule(floor, rho_growth, max(rho_max, floor))
     return rhos
 
 

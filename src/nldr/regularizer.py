@@ -325,7 +325,7 @@ def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, e
         tol = tols[1] if rho == rhos[-1] else tols[0]
         if not nystroem_here():  # exact kernel; L-BFGS on S, or on Y with S = variables.to_samples(Y)
             args = (S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint)
-            return lbfgs_stage(*args, variables, plateau=None if landmarks is None else plateau)
+            return lbfgs_stage(*args, variables, plateau=plateau)  # plateau is only set on the warm path
         frozen["Z"] = Z = S[idx_last if done[0] == n_approx - 1 else idx].copy()  # fixed during the stage
         frozen["P"] = P = landmark_map(Z, gamma)
 
