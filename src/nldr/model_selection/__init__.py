@@ -66,8 +66,11 @@ from .folds import DEFAULT_TAUS, GAMMA_MULTIPLES, holdout_folds, median_gamma
 from .imputers import ImputerSelection, baseline_grid, select_imputer
 from .regularizer import RegularizerSelection, select_regularizer
 from .robust import HuberSelection, robust_scale, select_huber_regularizer
+from .search import EntryFolds, HoldoutSearch
 
 __all__ = [
+    "HoldoutSearch",
+    "EntryFolds",
     "DEFAULT_TAUS",
     "GAMMA_MULTIPLES",
     "median_gamma",
