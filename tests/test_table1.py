@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 
-from nldr.experiments.table1 import figure3_curves, run_noise_level, spectral_kernel_errors, summarise
+from nldr.baselines.kpca import kpca_spectrum, project_points, spectral_kernel_errors, truncated_spectra
+from nldr.experiments.table1 import figure3_curves, run_noise_level, summarise
 from nldr.kernels import center_kernel, rbf_kernel
 
 
@@ -66,7 +67,6 @@ def test_factor_projection_maps_training_rows_onto_their_coordinates_and_matches
     """The test-point map applied to a training point's own kernel row returns its training
     coordinates (K U = U diag(lam)); for the closed form they are the columns of C, as in the
     RobustKernelPCA estimator (same eigendecomposition, so equal to rounding)."""
-    from nldr.experiments.table1 import project_points
     from nldr.kernels import center_cross_kernel
     from nldr.robust_kpca import RobustKernelPCA, shrink_eigenvalues
 
@@ -131,3 +131,22 @@ def test_test_manifold_error_is_bounded_by_the_first_dropped_eigenvalue(two_moon
         run_noise_level(
             Xtr, ytr, Xte, yte, noise_std=0.1, seed=0, gamma=1.0, max_rank=5, taus=[1.0], projection="x"
         )
+
+
+def test_kpca_truncation_is_the_eckart_young_best_psd_approximation(rng):
+    """At rank k the truncated spectrum's relative error against K itself is the dropped squared
+    eigenvalues (negative ones included) over ||K||^2, and it never increases with k."""
+    A = rng.normal(size=(10, 10))
+    K = A @ A.T - 3.0 * np.eye(10)  # some negative eigenvalues
+    lam, U = kpca_spectrum(K)
+    assert np.all(np.diff(lam) <= 0)
+    np.testing.assert_allclose((U * lam) @ U.T, K, atol=1e-10)
+    spectra = truncated_spectra(lam, np.arange(11))
+    errors = spectral_kernel_errors(U, K, spectra)
+    dropped = [np.sum(np.where(np.arange(10) < k, np.minimum(lam, 0.0), lam) ** 2) for k in range(11)]
+    np.testing.assert_allclose(errors, np.array(dropped) / np.sum(K**2), rtol=1e-10, atol=1e-14)
+    assert np.all(np.diff(errors) <= 1e-14)
+    with pytest.raises(ValueError, match="ranks"):
+        truncated_spectra(lam, [11])
+    with pytest.raises(ValueError, match="symmetric"):
+        kpca_spectrum(A)

@@ -2,7 +2,7 @@
 imputers people already use (:mod:`.peers`: KNN, chained equations, missForest, SoftImpute; not in
 the paper)."""
 
-from .kpca import kpca_spectrum, truncated_kernel
+from .kpca import kpca_spectrum, project_points, spectral_kernel_errors, truncated_spectra
 from .mean import mean_impute
 from .nearest_neighbour import NearestNeighbourResult, nearest_neighbour_impute
 from .peers import (
@@ -20,7 +20,9 @@ from .rkpca import KernelSubspace, RKPCAResult, fit_kernel_subspace, rkpca_energ
 
 __all__ = [
     "kpca_spectrum",
-    "truncated_kernel",
+    "truncated_spectra",
+    "spectral_kernel_errors",
+    "project_points",
     "mean_impute",
     "NearestNeighbourResult",
     "nearest_neighbour_impute",

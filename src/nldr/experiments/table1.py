@@ -6,8 +6,9 @@ relative manifold error ||K_est - K_gt||_F^2 / ||K_gt||_F^2 (docs/REPRODUCTION.m
 for centring and for the normalisation). KPCA is evaluated at every rank, the closed form at every
 tau of a sweep (rho = 1: only tau / rho matters). The best setting of each method is then scored by
 1-nearest-neighbour classification of the clean test points projected onto its manifold
-(:data:`PROJECTIONS`: how; docs/REPRODUCTION.md#classification gives the measurements behind the
-default), and by the same manifold error on the test-versus-training block of the kernel.
+(:data:`nldr.baselines.kpca.PROJECTIONS`: how; docs/REPRODUCTION.md#classification gives the
+measurements behind the default), and by the same manifold error on the test-versus-training block
+of the kernel.
 """
 
 from __future__ import annotations
@@ -18,6 +19,13 @@ from sklearn.neighbors import KNeighborsClassifier
 
 from .. import paper as paper_numbers
 from .._validation import as_float_matrix, check_positive
+from ..baselines.kpca import (
+    PROJECTIONS,
+    kpca_spectrum,
+    project_points,
+    spectral_kernel_errors,
+    truncated_spectra,
+)
 from ..datasets import load_oil
 from ..kernels import center_cross_kernel, center_kernel, rbf_kernel
 from ..plotting import figure3
@@ -25,87 +33,11 @@ from ..robust_kpca import shrink_eigenvalues
 from .base import Experiment, Job, JobOutput, summary_stats
 
 __all__ = [
-    "PROJECTIONS",
-    "spectral_kernel_errors",
-    "project_points",
     "run_noise_level",
     "summarise",
     "figure3_curves",
     "Table1",
 ]
-
-#: How training and test points get coordinates on an estimated manifold (:func:`project_points`).
-PROJECTIONS = ("factor", "eigenvectors", "whitened", "normalised")
-
-
-def spectral_kernel_errors(
-    eigenvectors: np.ndarray, target: np.ndarray, denoised_eigenvalues: np.ndarray
-) -> np.ndarray:
-    """Relative errors ||U diag(d) U^T - T||_F^2 / ||T||_F^2 for many spectra d at once.
-
-    With q_i = u_i^T T u_i and U orthonormal, ||U diag(d) U^T - T||^2 = ||T||^2 - 2 d.q + d.d, so
-    after one O(n^3) product every candidate costs O(n).
-
-    Parameters
-    ----------
-    eigenvectors : (n, n) orthonormal columns U
-    target : (n, n) symmetric matrix T
-    denoised_eigenvalues : (m, n) one spectrum d per row
-
-    Returns
-    -------
-    errors : (m,)
-    """
-    q = np.einsum("ij,ij->j", target @ eigenvectors, eigenvectors)
-    norm2 = float(np.sum(target**2))
-    d = np.atleast_2d(denoised_eigenvalues)
-    return (norm2 - 2.0 * d @ q + np.einsum("ij,ij->i", d, d)) / norm2
-
-
-def project_points(U, lam, K_test, scale, projection: str = "factor"):
-    """Coordinates of the training and test points on a manifold spanned by the leading eigenvectors.
-
-    The manifold is the span of the k = len(scale) leading eigenvectors of the (centred) training
-    kernel, whose component i carries the feature-space scale ``scale[i]``: ``sqrt(lam_i)`` for KPCA,
-    the closed form's ``l_i`` (the rows of C = diag(l) U^T). Training point j gets
-    ``U[j, :k] * scale`` (for the closed form: column j of C) and a test point with kernel row
-    ``k_test`` gets ``k_test U_k * scale / lam_k``, the same map extended to new points (for a
-    training point's own kernel row it returns its training coordinates, as K U = U diag(lam)).
-
-    Parameters
-    ----------
-    U : (n, m) eigenvectors of the training kernel, leading first (m >= k).
-    lam : (m,) their eigenvalues, positive for the first k.
-    K_test : (t, n) test-versus-training kernel, centred like the training kernel.
-    scale : (k,) feature-space scale of each kept component (see above).
-    projection : {"factor", "eigenvectors", "whitened", "normalised"}
-        "factor": the map above with the given scale (KPCA coordinates, the closed form's C);
-        "eigenvectors": the same with ``sqrt(lam)`` whatever the scale (KPCA coordinates at the
-        closed form's rank: only the subspace is the closed form's); "whitened": scale 1 (every
-        component unit variance over the training set); "normalised": "factor" with every point's
-        coordinates scaled to unit length (cosine geometry).
-
-    Returns
-    -------
-    train : (n, k), test : (t, k)
-    """
-    if projection not in PROJECTIONS:
-        raise ValueError(f"projection must be one of {PROJECTIONS}; got {projection!r}")
-    scale = np.asarray(scale, dtype=np.float64)
-    k = scale.size
-    if k and np.any(lam[:k] <= 0):
-        raise ValueError("lam must be positive on the kept components")
-    if projection == "eigenvectors":
-        scale = np.sqrt(lam[:k])
-    elif projection == "whitened":
-        scale = np.ones(k)
-    train, test = U[:, :k] * scale, K_test @ U[:, :k] * (scale / lam[:k])
-    if projection == "normalised":
-        train, test = (
-            Z / np.maximum(np.linalg.norm(Z, axis=1, keepdims=True), 1e-300) for Z in (train, test)
-        )
-    return train, test
-
 
 def _nn_error(train_coords, y_train, test_coords, y_test) -> float:
     """Percentage of test points whose nearest training point (Euclidean) has another label.
@@ -146,7 +78,8 @@ def run_noise_level(
     max_rank : KPCA is evaluated at ranks 1..max_rank.
     taus : 1-d array of trace-norm weights for the closed form (rho = 1).
     center : centre the kernels in feature space.
-    projection : one of :data:`PROJECTIONS`, how points get coordinates (:func:`project_points`).
+    projection : one of :data:`~nldr.baselines.kpca.PROJECTIONS`, how points get coordinates
+        (:func:`~nldr.baselines.kpca.project_points`).
 
     Returns
     -------
@@ -182,11 +115,10 @@ def run_noise_level(
         K_test = center_cross_kernel(K_test, K_noisy.mean(axis=0))
         K_test_gt = center_cross_kernel(K_test_gt, K_gt.mean(axis=0))
         K_noisy, K_gt = center_kernel(K_noisy), center_kernel(K_gt)
-    lam, U = np.linalg.eigh(K_noisy)
-    lam, U = lam[::-1], U[:, ::-1]
+    lam, U = kpca_spectrum(K_noisy)
 
     ranks = np.arange(1, max_rank + 1)
-    kpca_spectra = np.where(np.arange(n)[None, :] < ranks[:, None], np.maximum(lam, 0.0)[None, :], 0.0)
+    kpca_spectra = truncated_spectra(lam, ranks)
     cfs_l = np.stack([shrink_eigenvalues(lam, tau, 1.0) for tau in taus])
     kpca_err = spectral_kernel_errors(U, K_gt, kpca_spectra)
     cfs_err = spectral_kernel_errors(U, K_gt, cfs_l**2)
@@ -206,7 +138,7 @@ def run_noise_level(
     out["test_manifold_error"] = np.nan
 
     # Each method's best manifold: KPCA keeps sqrt(lam) on its best rank, the closed form the
-    # shrunk l of its best tau (project_points: coordinates of training and test points).
+    # shrunk l of its best tau (nldr.baselines.kpca.project_points: coordinates of training and test points).
     k = int(ranks[np.argmin(kpca_err)])
     best_l = cfs_l[int(np.argmin(cfs_err))]
     scales = {"KPCA": np.sqrt(lam[:k]), "CFS": best_l[: np.count_nonzero(best_l)]}
