@@ -119,6 +119,7 @@ def test_every_candidate_failing_raises_saying_so():
         ({"scale": [1.0]}, {"stop_factor": 2.0}, "path"),
         ({"scale": [1.0]}, {"prefer": ("tau",)}, "prefer"),
         ({"fail": [False]}, {"path": "scale"}, "path"),
+        ({"scale": [1.0]}, {"path": "scale", "stop_factor": 1.0}, "stop_factor"),
         ({"scale": []}, {}, "param_grid"),
     ],
 )
@@ -135,6 +136,12 @@ def test_an_invalid_parameter_value_is_refused_by_the_estimators_own_validation_
     # the second candidate is bad: the first would have been solved in every fold before it
     with pytest.raises(ValueError, match="weights"):
         HoldoutSearch(KNNImputer(), {"weights": ["uniform", "uniformm"]}).fit(W)
+    # a nested estimator's parameter (IterativeImputer's regressor) too
+    from sklearn.ensemble import ExtraTreesRegressor
+
+    forest = IterativeImputer(estimator=ExtraTreesRegressor(n_estimators=2))
+    with pytest.raises(ValueError, match="max_features"):
+        HoldoutSearch(forest, {"estimator__max_features": [1.0, -3.0]}).fit(W)
 
 
 def test_a_fold_that_hides_nothing_is_refused_naming_the_mask():

@@ -53,6 +53,24 @@ class EntryFolds:
         return f"EntryFolds(n_folds={self.n_folds}, holdout={self.holdout}, random_state={self.random_state})"
 
 
+def _validate(estimator) -> None:
+    """The estimator's own parameter validation, without fitting: scikit-learn's declared constraints
+    (``_parameter_constraints``) and the library imputers' ``_check_params``, where they exist, of the
+    estimator and of the estimators among its parameters (a Pipeline's steps, IterativeImputer's
+    regressor)."""
+    for value in estimator.get_params(deep=False).values():
+        if isinstance(value, BaseEstimator):
+            _validate(value)
+        elif isinstance(value, list):  # Pipeline steps: (name, estimator) pairs
+            for item in value:
+                if isinstance(item, tuple) and len(item) == 2 and isinstance(item[1], BaseEstimator):
+                    _validate(item[1])
+    if hasattr(estimator, "_parameter_constraints") and hasattr(estimator, "_validate_params"):
+        estimator._validate_params()
+    if callable(getattr(estimator, "_check_params", None)):
+        estimator._check_params()
+
+
 def _score(scoring, X, X_hat, hidden) -> float:
     """Error of ``X_hat`` against ``X`` on the ``hidden`` entries (lower is better)."""
     if callable(scoring):
@@ -113,6 +131,7 @@ def _fold_job(estimator, candidates, fold_params, fold, X, path, stop, scoring, 
         for k, params in enumerate(candidates):
             key = tuple(sorted((n, repr(v)) for n, v in params.items() if n != path))
             groups.setdefault(key, []).append(k)
+        warm = "warm_start" in estimator.get_params()
         previous_first = None
         for members in groups.values():
             est, lowest, first = None, np.inf, None
@@ -120,14 +139,17 @@ def _fold_job(estimator, candidates, fold_params, fold, X, path, stop, scoring, 
                 if rows and rows[-1]["candidate"] in members and rows[-1]["test_error"] > stop * lowest:
                     break
                 params = candidates[k]
-                if est is None:
+                if not warm:
+                    est = clone(estimator).set_params(**fold_params)
+                elif est is None:
                     est = clone(estimator) if previous_first is None else copy.deepcopy(previous_first)
                     est.set_params(**fold_params, warm_start=previous_first is not None)
                 est.set_params(**params)
                 error, seconds = _solve(est, fold, X, scoring, error_score, derive)
-                est.set_params(warm_start=True)
-                if first is None:
-                    first = copy.deepcopy(est)
+                if warm:
+                    est.set_params(warm_start=True)
+                    if first is None:
+                        first = copy.deepcopy(est)
                 rows.append({"candidate": k, "test_error": error, "fit_time": seconds})
                 lowest = min(lowest, error)
                 say(verbose, "HoldoutSearch", f"{label}{params}: error {error:.5g} ({seconds:.2f} s)")
@@ -198,10 +220,12 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
         Parameters set on the fold fits only (looser tolerances, an approximate kernel); the refit
         uses the estimator's own.
     path : str, optional
-        A parameter solved as a warm-started path: in a fold, the candidates that differ only in it
-        share one estimator with ``warm_start=True`` (it must have that parameter), solved in the
-        grid's order of that parameter; the first candidate of every later group starts from a copy
-        of the previous group's first fit. None: every candidate is fitted cold.
+        A parameter solved as a path: in a fold, the candidates that differ only in it are fitted in
+        the grid's order of that parameter. If the estimator has a ``warm_start`` parameter, they
+        share one estimator with ``warm_start=True`` (each fit starts from the previous one's
+        answer), and the first candidate of every later group starts from a copy of the previous
+        group's first fit; otherwise each is fitted cold. None: every candidate is fitted cold, in
+        the grid's order.
     stop_factor : float > 1, optional
         Along a ``path``: once a candidate's error exceeds stop_factor times the smallest error of its
         path so far in a fold, the rest of that path is not solved in that fold (those candidates get
@@ -301,14 +325,11 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
                     est = clone(self.estimator).set_params(**params, **extra)
                 except ValueError as err:
                     raise ValueError(f"candidate {params} (fold_params {extra}): {err}") from err
-                if hasattr(est, "_parameter_constraints") and hasattr(est, "_validate_params"):
-                    try:
-                        est._validate_params()
-                    except (TypeError, ValueError) as err:
-                        raise ValueError(f"candidate {params} (fold_params {extra}): {err}") from err
+                try:
+                    _validate(est)
+                except (TypeError, ValueError) as err:
+                    raise ValueError(f"candidate {params} (fold_params {extra}): {err}") from err
         if self.path is not None:
-            if "warm_start" not in self.estimator.get_params():
-                raise ValueError(f"path={self.path!r} needs an estimator with a warm_start parameter")
             if not all(self.path in params for params in candidates):
                 raise ValueError(f"path={self.path!r} must be a parameter of every candidate of param_grid")
         for name in self.prefer:
