@@ -4,11 +4,13 @@ Protocol: the first 100 oil-flow training rows (100 x 12), masks from
 :func:`nldr.experiments.table2.random_mask` (seeds ``--seed0``, +1, ...), mean-imputation start, uncentred
 kernel, the paper's schedule (rho0 1, growth 10, rho_max 1e4), one BLAS thread, CPU seconds
 (``time.process_time``). Per mask it times one solve at the paper's values (gamma 0.075, tau 0.1) and
-one :func:`nldr.model_selection.select_regularizer` per variant on the default grid (9 taus, 3 gammas):
+one :class:`nldr.model_selection.HoldoutSearch` of the regularizer per variant on the default grid (9
+taus, 3 gammas):
 
-- ``before``: 5 folds partitioning the observed entries, smallest mean error, tau path warm-started
-  (the options before ``holdout``, ``rule`` and ``warm_gamma`` existed);
-- ``after``: the defaults (5 Monte-Carlo folds hiding 10 % each, the one-standard-error rule).
+- ``before``: 5 folds partitioning the observed entries, smallest mean error;
+- ``after``: the selection experiment's search (5 Monte-Carlo folds hiding 10 % each, the
+  one-standard-error rule preferring the smallest tau then the widest kernel, tau paths stopped at 1.5
+  times their best, looser fold tolerances).
 
 It reports the SSE over the whole matrix of the paper's values, of each variant's refit, and of the
 grid point with the smallest SSE against ground truth (an ORACLE: it sees the truth, so it is only a
@@ -30,40 +32,49 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from nldr.impute import KernelRegularizerImputer
+from sklearn.base import clone
 from threadpoolctl import threadpool_limits
 
-from nldr.baselines import mean_impute
-from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import load_oil
 from nldr.experiments.table2 import random_mask
-from nldr.model_selection import select_regularizer
-from nldr.regularizer import minimize_regularized
+from nldr.model_selection import DEFAULT_TAUS, GAMMA_MULTIPLES, HoldoutSearch, median_gamma
 
 PAPER = {"gamma": 0.075, "tau": 0.1}
-SCHEDULE = {"rho0": 1.0, "rho_growth": 10.0, "rho_max": 1e4}
+#: the regularizer in the data's units, the paper's schedule (the solver's defaults), exact kernel
+OURS = KernelRegularizerImputer(standardize=False, method="exact")
 VARIANTS = {
-    "before": {"n_folds": 5, "holdout": None, "rule": "min", "warm_gamma": False},
-    "after": {},
+    "before": {"n_folds": 5, "holdout": None, "rule": "min", "path": "tau"},
+    "after": {
+        "n_folds": 5,
+        "holdout": 0.1,
+        "rule": "one_se",
+        "prefer": ("tau", "gamma"),
+        "path": "tau",
+        "stop_factor": 1.5,
+        "fold_params": {"options": {"tol": 1e-7, "gtol": 1e-4}},
+    },
 }
 
 
 def run_mask(X, p, seed, variants):
     mask = random_mask(X.shape, p, seed)
     W = np.where(mask, X, np.nan)
-    term, S0 = MaskedLeastSquares(W, mask), mean_impute(W, mask)
 
     def sse(S):
         return float(np.sum((S - X) ** 2))
 
     start = time.process_time()
-    paper = minimize_regularized(term, S0, **PAPER, **SCHEDULE)
+    paper = clone(OURS).set_params(**PAPER).fit_transform(W)
     solve_cpu = time.process_time() - start
-    rows, grid = [], None
+    gammas = np.asarray(GAMMA_MULTIPLES) * median_gamma(W)
+    grid = {"gamma": [float(g) for g in gammas], "tau": list(DEFAULT_TAUS)}
+    rows = []
     for name in variants:
         start = time.process_time()
-        sel = select_regularizer(W, mask, random_state=seed, **VARIANTS[name], **SCHEDULE)
+        search = HoldoutSearch(OURS, grid, random_state=seed, **VARIANTS[name])
+        X_hat = search.fit_transform(W)
         select_cpu = time.process_time() - start
-        grid = sel.cv_results_[["tau", "gamma"]]
         rows.append(
             {
                 "p": p,
@@ -72,20 +83,20 @@ def run_mask(X, p, seed, variants):
                 "solve_cpu": solve_cpu,
                 "select_cpu": select_cpu,
                 "solves": select_cpu / solve_cpu,
-                "sse_paper": sse(paper.x),
-                "sse_cv": sse(sel.result_.x),
-                "tau_cv": sel.tau_,
-                "gamma_cv": sel.gamma_,
+                "sse_paper": sse(paper),
+                "sse_cv": sse(X_hat),
+                "tau_cv": search.best_params_["tau"],
+                "gamma_cv": search.best_params_["gamma"],
             }
         )
-    # ORACLE: every grid point solved on all observed entries (as the refit) and scored against the truth.
-    oracle = min(
-        (sse(minimize_regularized(term, S0, gamma=g, tau=t, **SCHEDULE).x), t, g)
-        for t, g in zip(grid["tau"], grid["gamma"], strict=True)
-    )
+    # ORACLE: every grid point fitted on all observed entries (as the refit) and scored against the
+    # truth: the search with ground truth as its one fold, hiding exactly the missing entries.
+    truth = HoldoutSearch(OURS, grid, folds=[~mask], scoring=lambda X, X_hat, h: sse(X_hat), refit=False)
+    truth.fit(X)
+    best = truth.best_params_
     for row in rows:
-        row.update(sse_oracle=oracle[0], tau_oracle=oracle[1], gamma_oracle=oracle[2])
-        row["cv_over_oracle"] = row["sse_cv"] / oracle[0]
+        row.update(sse_oracle=truth.best_score_, tau_oracle=best["tau"], gamma_oracle=best["gamma"])
+        row["cv_over_oracle"] = row["sse_cv"] / truth.best_score_
     return rows
 
 

@@ -6,7 +6,7 @@ thread, CPU seconds by ``time.process_time``. Per mask:
 
 - ``Ours``: the regularizer at Table 2's settings (gamma 0.075, tau 0.1, uncentred, rho 1 -> 1e4),
   from mean imputation (Table 2's "Ours" row);
-- each peer with its knob chosen by :func:`nldr.model_selection.select_imputer` on 5 hold-out folds of
+- each peer with its knob chosen by :class:`nldr.model_selection.HoldoutSearch` on 5 hold-out folds of
   the observed entries (seed = the mask's seed) over :func:`nldr.model_selection.baseline_grid`, then
   refitted on every observed entry; IterativeImputer has no knob and is fitted once.
 
@@ -28,16 +28,16 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from nldr.impute import KernelRegularizerImputer
+from sklearn.base import clone
 from threadpoolctl import threadpool_limits
 
-from nldr.baselines import mean_impute
-from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import load_oil
 from nldr.experiments.table2 import random_mask
-from nldr.model_selection import baseline_grid, select_imputer
-from nldr.regularizer import minimize_regularized
+from nldr.model_selection import HoldoutSearch, baseline_grid
 
-OURS = {"gamma": 0.075, "tau": 0.1, "center": False, "rho0": 1.0, "rho_growth": 10.0, "rho_max": 1e4}
+#: Table 2's Ours, the paper's settings written out
+OURS = KernelRegularizerImputer(standardize=False, gamma=0.075, tau=0.1, center=False, method="exact")
 PEERS = ("KNNImputer", "IterativeImputer", "SoftImpute", "missForest")
 
 
@@ -53,7 +53,7 @@ def run_mask(X, p, seed, methods, n_folds):
     rows = []
 
     def record(method, X_hat, cpu, cpu_fit, params=""):
-        sse = float(np.sum((np.asarray(getattr(X_hat, "x", X_hat)) - X) ** 2))
+        sse = float(np.sum((X_hat - X) ** 2))
         rows.append(
             {
                 "n_rows": X.shape[0],
@@ -72,25 +72,22 @@ def run_mask(X, p, seed, methods, n_folds):
         )
 
     if "Ours" in methods:
-        res, cpu = timed(
-            lambda: minimize_regularized(MaskedLeastSquares(W, mask), mean_impute(W, mask), **OURS)
-        )
-        record("Ours", res.x, cpu, cpu, f"nit={res.nit}")
+        ours = clone(OURS)
+        X_hat, cpu = timed(lambda: ours.fit_transform(W))
+        record("Ours", X_hat, cpu, cpu, f"nit={ours.result_.nit}")
     for method in methods:
         if method == "Ours":
             continue
-        impute, grid = baseline_grid(method, W, mask)
+        estimator, grid = baseline_grid(method, W)
         if not grid:
-            out, cpu = timed(lambda impute=impute: impute(W, mask))
-            record(method, out, cpu, cpu)
+            X_hat, cpu = timed(lambda estimator=estimator: clone(estimator).fit_transform(W))
+            record(method, X_hat, cpu, cpu)
             continue
-        sel, cpu = timed(
-            lambda impute=impute, grid=grid: select_imputer(
-                impute, W, mask, grid, n_folds=n_folds, random_state=seed
-            )
-        )
-        _, cpu_fit = timed(lambda impute=impute, sel=sel: impute(W, mask, **sel.best_params_))
-        record(f"{method} (CV)", sel.result_, cpu, cpu_fit, repr(sel.best_params_))
+        search = HoldoutSearch(estimator, grid, n_folds=n_folds, random_state=seed)
+        X_hat, cpu = timed(lambda search=search: search.fit_transform(W))
+        best = clone(estimator).set_params(**search.best_params_)
+        _, cpu_fit = timed(lambda best=best: best.fit_transform(W))
+        record(f"{method} (CV)", X_hat, cpu, cpu_fit, repr(search.best_params_))
     return rows
 
 

@@ -3,22 +3,15 @@
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 import pytest
 from conftest import denoising_problem, within_observed_range
+from sklearn.base import BaseEstimator, TransformerMixin
 from threadpoolctl import threadpool_limits
 
 from nldr._spectral import cubic_threshold
-from nldr.baselines import mean_impute, ppca_impute
+from nldr.baselines import mean_impute
 from nldr.data_terms import MaskedLeastSquares
-from nldr.model_selection import (
-    DEFAULT_TAUS,
-    baseline_grid,
-    holdout_folds,
-    median_gamma,
-    select_imputer,
-    select_regularizer,
-)
+from nldr.model_selection import DEFAULT_TAUS, HoldoutSearch, holdout_folds, median_gamma
 from nldr.regularizer import isolation_safe_rho0, minimize_regularized
 
 
@@ -29,15 +22,10 @@ def one_blas_thread():
         yield
 
 
-def fold_error(W, mask, hidden, gamma, tau, **options):
-    """The hold-out error of one candidate on one fold, by hand."""
-    train = mask & ~hidden
-    W_train = np.where(train, W, np.nan)
-    res = minimize_regularized(
-        MaskedLeastSquares(W_train, train), mean_impute(W_train, train), gamma=gamma, tau=tau,
-        isolation_guard=True, **options,
-    )
-    return np.mean((res.x - W)[hidden] ** 2)
+def solve(W, mask, start, gamma, tau, **options):
+    """The regularizer on the observed entries of W from ``start`` (the isolation guard on)."""
+    term = MaskedLeastSquares(np.where(mask, W, np.nan), mask)
+    return minimize_regularized(term, start, gamma=gamma, tau=tau, isolation_guard=True, **options).x
 
 
 # --------------------------------------------------------------------------------------------------
@@ -85,161 +73,117 @@ def test_holdout_outside_the_unit_interval_is_refused(holdout):
         holdout_folds(np.ones((5, 5), dtype=bool), 2, holdout=holdout)
 
 
-@pytest.mark.parametrize(
-    "kwargs, match",
-    [
-        ({"mask": np.ones((5, 5), dtype=bool)}, "shape"),
-        ({"taus": [0.1, -1.0]}, "taus"),
-        ({"gammas": []}, "gammas"),
-        ({"n_folds": 1}, "n_folds"),
-        ({"tau": 1.0}, "tau"),
-        ({"holdout": 1.5}, "holdout"),
-        ({"rule": "best"}, "rule"),
-        ({"stop_factor": 1.0}, "stop_factor"),
-    ],
-)
-def test_select_regularizer_rejects_bad_input_naming_it(kwargs, match):
-    _, W, mask = denoising_problem(n=12, d=4)
-    args = {"mask": mask, **kwargs}
-    with pytest.raises(ValueError, match=match):
-        select_regularizer(W, args.pop("mask"), **args)
-
-
-def test_a_column_without_observed_entries_is_refused():
-    _, W, mask = denoising_problem(n=12, d=4)
-    mask[:, 1] = False
-    with pytest.raises(ValueError, match="column"):
-        select_regularizer(W, mask)
-
-
 # --------------------------------------------------------------------------------------------------
-# select_regularizer
+# The regularizer's search: warm-started tau paths
 # --------------------------------------------------------------------------------------------------
 
 
-def test_cv_score_is_the_hand_computed_holdout_error_and_the_refit_is_the_solver():
+class WarmRegularizer(TransformerMixin, BaseEstimator):
+    """The regularizer with scikit-learn's warm_start: a refit starts from the previous answer with
+    the last penalty stage only (what a tau path needs of an estimator)."""
+
+    def __init__(self, gamma=1.0, tau=0.1, tol=1e-10, gtol=1e-6, warm_start=False):
+        self.gamma, self.tau, self.tol, self.gtol, self.warm_start = gamma, tau, tol, gtol, warm_start
+
+    def fit_transform(self, X, y=None):
+        mask = ~np.isnan(X)
+        warm = self.warm_start and hasattr(self, "x_")
+        start, rho0 = (self.x_, 1e4) if warm else (mean_impute(X, mask), 1.0)
+        options = {"tol": self.tol, "gtol": self.gtol}
+        self.x_ = solve(X, mask, start, self.gamma, self.tau, rho0=rho0, **options)
+        return self.x_
+
+    def fit(self, X, y=None):
+        self.fit_transform(X)
+        return self
+
+
+def test_a_tau_path_is_the_hand_chain_of_last_stage_solves_and_widths_chain_from_their_first():
     _, W, mask = denoising_problem(n=25, d=5)
-    taus, gamma = [0.1, 1.0], median_gamma(W, mask)
-    sel = select_regularizer(
-        W, mask, taus=taus, gammas=[gamma], n_folds=2, holdout=None, rule="min", warm_start=False,
-        stop_factor=None,
-    )
-    folds = holdout_folds(mask, 2, random_state=0)
-    for tau in taus:
-        errors = [fold_error(W, mask, h, gamma, tau, tol=1e-7, gtol=1e-4) for h in folds]
-        row = sel.cv_results_[sel.cv_results_["tau"] == tau].iloc[0]
-        assert row["mean_test_error"] == pytest.approx(np.mean(errors), rel=1e-12)
-        assert row["std_test_error"] == pytest.approx(np.std(errors, ddof=1), rel=1e-9)
-    assert list(sel.cv_results_.columns) == ["tau", "gamma", "mean_test_error", "std_test_error", "fit_time"]
-    best = sel.cv_results_["mean_test_error"].idxmin()
-    assert sel.tau_ == sel.cv_results_["tau"][best]
-    refit = minimize_regularized(
-        MaskedLeastSquares(W, mask), mean_impute(W, mask), gamma=sel.gamma_, tau=sel.tau_,
-        isolation_guard=True,
-    )
-    np.testing.assert_array_equal(sel.result_.x, refit.x)
-
-
-def test_warm_started_path_is_the_hand_chain_of_last_stage_solves():
-    _, W, mask = denoising_problem(n=25, d=5)
-    gamma = median_gamma(W, mask)
-    sel = select_regularizer(W, mask, taus=[1.0, 0.1], gammas=[gamma], n_folds=2, stop_factor=None)
-    hidden = holdout_folds(mask, 2, random_state=0, holdout=0.1)  # the default folds
-    errors = {0.1: [], 1.0: []}
-    for h in hidden:
-        train = mask & ~h
-        W_train = np.where(train, W, np.nan)
-        term = MaskedLeastSquares(W_train, train)
-        opts = {"gamma": gamma, "isolation_guard": True, "tol": 1e-7, "gtol": 1e-4}
-        first = minimize_regularized(term, mean_impute(W_train, train), tau=0.1, **opts)
-        second = minimize_regularized(term, first.x, tau=1.0, rho0=1e4, **opts)
-        errors[0.1].append(np.mean((first.x - W)[h] ** 2))
-        errors[1.0].append(np.mean((second.x - W)[h] ** 2))
-    for tau, errs in errors.items():
-        row = sel.cv_results_[sel.cv_results_["tau"] == tau].iloc[0]
-        assert row["mean_test_error"] == pytest.approx(np.mean(errs), rel=1e-12)
-
-
-def test_warm_gamma_chains_the_first_solves_of_the_gammas_by_hand():
-    _, W, mask = denoising_problem(n=25, d=5)
+    W = np.where(mask, W, np.nan)
     g1, g2 = 0.5 * median_gamma(W, mask), median_gamma(W, mask)
-    sel = select_regularizer(W, mask, taus=[0.1], gammas=[g2, g1], n_folds=2, warm_gamma=True)
-    opts = {"isolation_guard": True, "tol": 1e-7, "gtol": 1e-4, "tau": 0.1}
-    errors = {g1: [], g2: []}
-    for h in sel.folds_:
+    search = HoldoutSearch(
+        WarmRegularizer(), {"gamma": [g1, g2], "tau": [0.1, 1.0]}, n_folds=2, holdout=0.1, path="tau",
+        fold_params={"tol": 1e-7, "gtol": 1e-4},
+    ).fit(W)
+    errors = {key: [] for key in [(g1, 0.1), (g1, 1.0), (g2, 0.1), (g2, 1.0)]}
+    for h in holdout_folds(mask, 2, random_state=0, holdout=0.1):
         train = mask & ~h
         W_train = np.where(train, W, np.nan)
-        term = MaskedLeastSquares(W_train, train)
-        first = minimize_regularized(term, mean_impute(W_train, train), gamma=g1, **opts)  # smaller first
-        second = minimize_regularized(term, first.x, gamma=g2, rho0=1e4, **opts)
-        errors[g1].append(np.mean((first.x - W)[h] ** 2))
-        errors[g2].append(np.mean((second.x - W)[h] ** 2))
-    for gamma, errs in errors.items():
-        row = sel.cv_results_[np.isclose(sel.cv_results_["gamma"], gamma)].iloc[0]
-        assert row["mean_test_error"] == pytest.approx(np.mean(errs), rel=1e-12)
-
-
-def test_one_se_rule_picks_the_smallest_tau_then_the_widest_kernel_within_one_standard_error():
-    _, W, mask = denoising_problem(n=25, d=5)
-    taus = [0.01, 0.1, 1.0, 10.0]
-    one_se = select_regularizer(W, mask, taus=taus, n_folds=3, random_state=1)
-    best = select_regularizer(W, mask, taus=taus, n_folds=3, random_state=1, rule="min")
-    cv = one_se.cv_results_
-    assert cv.equals(best.cv_results_.assign(fit_time=cv["fit_time"]))  # same folds, same scores
-    i = cv["mean_test_error"].idxmin()
-    assert (best.tau_, best.gamma_) == (cv["tau"][i], cv["gamma"][i])
-    bound = cv["mean_test_error"][i] + cv["std_test_error"][i] / np.sqrt(3)
-    close = cv[cv["mean_test_error"] <= bound]
-    chosen = cv[(cv["tau"] == one_se.tau_) & (cv["gamma"] == one_se.gamma_)].iloc[0]
-    assert chosen["mean_test_error"] <= bound
-    assert one_se.tau_ == close["tau"].min()
-    assert one_se.gamma_ == close[close["tau"] == one_se.tau_]["gamma"].min()
-
-
-def test_one_se_tie_break_prefers_the_widest_kernel_over_a_lower_error():
-    """Within one SE and at the smallest tau, the widest kernel wins even with a higher mean error."""
-    from nldr.model_selection.regularizer import _choose
-
-    cv = pd.DataFrame(
-        {
-            "tau": [0.01, 0.01, 0.01, 0.1],
-            "gamma": [0.5, 0.1, 2.0, 0.1],
-            "mean_test_error": [1.00, 1.02, 1.01, 0.99],
-            "std_test_error": [0.1, 0.1, 0.1, 0.1],  # bound 0.99 + 0.1 / sqrt(4) = 1.04: all close
+        opts = {"tol": 1e-7, "gtol": 1e-4}
+        first = solve(W_train, train, mean_impute(W_train, train), g1, 0.1, **opts)  # the one cold solve
+        chain = {
+            (g1, 0.1): first,
+            (g1, 1.0): solve(W_train, train, first, g1, 1.0, rho0=1e4, **opts),
         }
-    )
-    assert _choose(cv, "one_se", n_folds=4) == 1  # tau 0.01, gamma 0.1
-    assert _choose(cv, "min", n_folds=4) == 3
-    cv.loc[1, "mean_test_error"] = 1.05  # now outside the bound: the widest close one is gamma 0.5
-    assert _choose(cv, "one_se", n_folds=4) == 0
+        chain[(g2, 0.1)] = solve(W_train, train, first, g2, 0.1, rho0=1e4, **opts)
+        chain[(g2, 1.0)] = solve(W_train, train, chain[(g2, 0.1)], g2, 1.0, rho0=1e4, **opts)
+        for key, x in chain.items():
+            errors[key].append(np.mean((x - W)[h] ** 2))
+    for k, params in enumerate(search.cv_results_["params"]):
+        expected = np.mean(errors[(params["gamma"], params["tau"])])
+        assert search.cv_results_["mean_test_error"][k] == pytest.approx(expected, rel=1e-12)
+    # the refit is the cold solve on every observed entry at the chosen candidate
+    best = search.best_params_
+    refit = solve(W, mask, mean_impute(W, mask), best["gamma"], best["tau"])
+    np.testing.assert_array_equal(search.best_estimator_.x_, refit)
 
 
 def test_early_stop_leaves_the_solved_scores_unchanged_and_skips_only_the_end_of_a_path():
     _, W, mask = denoising_problem(n=25, d=5)
-    taus = [0.01, 0.1, 1.0, 10.0, 100.0]
-    full = select_regularizer(W, mask, taus=taus, n_folds=2, stop_factor=None)
-    cut = select_regularizer(W, mask, taus=taus, n_folds=2, stop_factor=1.05)
-    assert full.cv_results_["mean_test_error"].notna().all()
-    skipped = cut.cv_results_["mean_test_error"].isna()
+    W = np.where(mask, W, np.nan)
+    grid = {"gamma": [0.5 * median_gamma(W), median_gamma(W)], "tau": [0.01, 0.1, 1.0, 10.0, 100.0]}
+    common = {"n_folds": 2, "holdout": 0.1, "path": "tau", "fold_params": {"tol": 1e-7, "gtol": 1e-4}}
+    full = HoldoutSearch(WarmRegularizer(), grid, **common).fit(W).cv_results_
+    cut = HoldoutSearch(WarmRegularizer(), grid, stop_factor=1.05, **common).fit(W)
+    assert np.isfinite(full["mean_test_error"]).all()
+    skipped = np.isnan(cut.cv_results_["mean_test_error"])
     assert skipped.any()  # 1.05 is aggressive: some path must stop on this problem, or the test is void
-    solved = ~skipped
-    np.testing.assert_array_equal(
-        cut.cv_results_["mean_test_error"][solved], full.cv_results_["mean_test_error"][solved]
-    )
-    for _, path in cut.cv_results_.groupby("gamma"):
-        flags = path.sort_values("tau")["mean_test_error"].isna().to_numpy()
+    solved = cut.cv_results_["mean_test_error"][~skipped]
+    np.testing.assert_array_equal(solved, full["mean_test_error"][~skipped])
+    for g in grid["gamma"]:
+        flags = skipped[cut.cv_results_["param_gamma"] == g]
         assert not flags[0] and np.all(np.diff(flags.astype(int)) >= 0)  # a suffix of the taus
-    assert not np.isnan(cut.cv_results_.set_index(["tau", "gamma"]).loc[(cut.tau_, cut.gamma_)].iloc[0])
+    assert not skipped[cut.best_index_]
 
 
-def test_same_seed_same_answer():
+def test_one_se_rule_picks_the_smallest_tau_then_the_widest_kernel_within_one_standard_error():
     _, W, mask = denoising_problem(n=25, d=5)
-    a = select_regularizer(W, mask, taus=[0.1, 1.0, 10.0], n_folds=3, random_state=7)
-    b = select_regularizer(W, mask, taus=[0.1, 1.0, 10.0], n_folds=3, random_state=7)
-    assert (a.tau_, a.gamma_) == (b.tau_, b.gamma_)
-    cols = ["tau", "gamma", "mean_test_error", "std_test_error"]
-    assert a.cv_results_[cols].equals(b.cv_results_[cols])
-    assert len(a.cv_results_) == 3 * 3  # default gammas: three multiples of the median rule
+    W = np.where(mask, W, np.nan)
+    grid = {"gamma": [0.5 * median_gamma(W), median_gamma(W)], "tau": [0.01, 0.1, 1.0, 10.0]}
+    common = {"n_folds": 3, "random_state": 1, "holdout": 0.1, "path": "tau", "refit": False}
+    one_se = HoldoutSearch(WarmRegularizer(), grid, rule="one_se", prefer=("tau", "gamma"), **common).fit(W)
+    best = HoldoutSearch(WarmRegularizer(), grid, rule="min", **common).fit(W)
+    mean, std = one_se.cv_results_["mean_test_error"], one_se.cv_results_["std_test_error"]
+    np.testing.assert_array_equal(mean, best.cv_results_["mean_test_error"])  # same folds, same scores
+    i = int(np.argmin(mean))
+    assert best.best_index_ == i
+    close = np.flatnonzero(mean <= mean[i] + std[i] / np.sqrt(3))
+    taus = one_se.cv_results_["param_tau"].astype(float)
+    gammas = one_se.cv_results_["param_gamma"].astype(float)
+    assert one_se.best_index_ in close and one_se.best_params_["tau"] == taus[close].min()
+    assert one_se.best_params_["gamma"] == gammas[close][taus[close] == taus[close].min()].min()
+
+
+def test_verbose_reports_every_candidate_fit_and_changes_nothing(capsys):
+    _, W, mask = denoising_problem(n=25, d=5)
+    W = np.where(mask, W, np.nan)
+    grid = {"gamma": [0.5, 1.0], "tau": [0.1, 1.0]}
+    quiet = HoldoutSearch(WarmRegularizer(), grid, n_folds=2, path="tau").fit(W)
+    assert capsys.readouterr().out == ""
+    loud = HoldoutSearch(WarmRegularizer(), grid, n_folds=2, path="tau", verbose=True).fit(W)
+    lines = capsys.readouterr().out.splitlines()
+    fits = [line for line in lines if ": error " in line]
+    assert len(fits) == 2 * 2 * 2  # folds x gammas x taus, each once
+    for fold in (1, 2):
+        for gamma in (0.5, 1.0):
+            for tau in (0.1, 1.0):
+                assert sum(f"fold {fold}/2 {{'gamma': {gamma}, 'tau': {tau}}}:" in f for f in fits) == 1
+    assert any("folds done: 2/2" in line for line in lines)
+    assert any(f"chose {loud.best_params_}" in line for line in lines)
+    assert all(line.startswith("[HoldoutSearch] ") for line in lines)
+    np.testing.assert_array_equal(loud.best_estimator_.x_, quiet.best_estimator_.x_)
+    np.testing.assert_array_equal(loud.cv_results_["mean_test_error"], quiet.cv_results_["mean_test_error"])
 
 
 # --------------------------------------------------------------------------------------------------
@@ -269,101 +213,3 @@ def test_hidden_entries_never_escape_along_the_default_tau_grid():
     # The test can fail: without the guard the paper's schedule (rho0 = 1) disperses them at tau = 100.
     escaped = minimize_regularized(term, S0, gamma=gamma, tau=DEFAULT_TAUS[-1], isolation_guard=False)
     assert not within_observed_range(escaped.x, W, mask)
-
-
-# --------------------------------------------------------------------------------------------------
-# Baselines
-# --------------------------------------------------------------------------------------------------
-
-
-def test_select_imputer_scores_ppca_by_hand_and_refits():
-    _, W, mask = denoising_problem(n=30, d=6)
-    impute, grid = baseline_grid("PPCA", W, mask)
-    assert grid == {"n_components": [1, 2, 3, 4, 5]}
-    sel = select_imputer(impute, W, mask, {"n_components": [1, 3]}, n_folds=3, random_state=2)
-    folds = holdout_folds(mask, 3, random_state=2)
-    for q in (1, 3):
-        errs = []
-        for h in folds:
-            train = mask & ~h
-            X_hat = ppca_impute(np.where(train, W, np.nan), train, n_components=q).x
-            errs.append(np.mean((X_hat - W)[h] ** 2))
-        row = sel.cv_results_[sel.cv_results_["n_components"] == q].iloc[0]
-        assert row["mean_test_error"] == pytest.approx(np.mean(errs), rel=1e-12)
-    refit = ppca_impute(np.where(mask, W, np.nan), mask, **sel.best_params_)
-    np.testing.assert_array_equal(sel.result_.x, refit.x)
-
-
-def test_baseline_grid_rejects_an_unknown_method():
-    _, W, mask = denoising_problem(n=12, d=4)
-    with pytest.raises(ValueError, match="method"):
-        baseline_grid("Ours", W, mask)
-
-
-def test_verbose_reports_every_candidate_solve_and_changes_nothing(capsys):
-    _, W, mask = denoising_problem(n=25, d=5)
-    kwargs = dict(taus=[0.1, 1.0], gammas=[0.5, 1.0], n_folds=2, stop_factor=None)
-    quiet = select_regularizer(W, mask, **kwargs)
-    assert capsys.readouterr().out == ""
-    loud = select_regularizer(W, mask, verbose=True, **kwargs)
-    lines = capsys.readouterr().out.splitlines()
-    solves = [line for line in lines if "hold-out error" in line]
-    assert len(solves) == 2 * 2 * 2  # folds x gammas x taus, each once
-    for fold in (1, 2):
-        for gamma in (0.5, 1.0):
-            for tau in (0.1, 1.0):
-                assert sum(f"fold {fold}/2 gamma={gamma:.4g} tau={tau:.4g}:" in s for s in solves) == 1
-    assert any("fold jobs done: 2/2" in line for line in lines)
-    assert any(f"chose tau={loud.tau_:.4g}, gamma={loud.gamma_:.4g}" in line for line in lines)
-    assert all(line.startswith("[select_regularizer] ") for line in lines)
-    np.testing.assert_array_equal(loud.result_.x, quiet.result_.x)
-    np.testing.assert_array_equal(
-        loud.cv_results_["mean_test_error"].to_numpy(), quiet.cv_results_["mean_test_error"].to_numpy()
-    )
-
-    impute, _ = baseline_grid("PPCA", W, mask)
-    sel = select_imputer(impute, W, mask, {"n_components": [1, 2]}, n_folds=3, verbose=True)
-    lines = capsys.readouterr().out.splitlines()
-    assert sum("hold-out error" in line for line in lines) == 2 * 3
-    assert any(f"chose {sel.best_params_}" in line for line in lines)
-
-
-def test_fold_landmarks_score_the_nystroem_fold_solves_by_hand_and_keep_the_refit_exact():
-    _, W, mask = denoising_problem(n=25, d=5)
-    taus, gamma = [0.1, 1.0], median_gamma(W, mask)
-    common = {"taus": taus, "gammas": [gamma], "n_folds": 2, "holdout": None, "rule": "min",
-              "warm_start": False, "stop_factor": None}
-    sel = select_regularizer(W, mask, fold_landmarks=10, **common)
-    folds = holdout_folds(mask, 2, random_state=0)
-    for tau in taus:
-        errors = [fold_error(W, mask, h, gamma, tau, tol=1e-7, gtol=1e-4, landmarks=10) for h in folds]
-        exact = [fold_error(W, mask, h, gamma, tau, tol=1e-7, gtol=1e-4) for h in folds]
-        row = sel.cv_results_[sel.cv_results_["tau"] == tau].iloc[0]
-        assert row["mean_test_error"] == pytest.approx(np.mean(errors), rel=1e-12)
-        assert np.mean(errors) != np.mean(exact)  # the option reaches the fold solves
-    refit = minimize_regularized(
-        MaskedLeastSquares(W, mask), mean_impute(W, mask), gamma=sel.gamma_, tau=sel.tau_,
-        isolation_guard=True,
-    )
-    np.testing.assert_array_equal(sel.result_.x, refit.x)  # the refit is the exact solve
-    # landmarks >= n is the exact kernel (minimize_regularized), so the selection is the exact one
-    every = select_regularizer(W, mask, fold_landmarks=25, **common)
-    plain = select_regularizer(W, mask, **common)
-    cols = ["tau", "gamma", "mean_test_error", "std_test_error"]
-    assert every.cv_results_[cols].equals(plain.cv_results_[cols])
-    again = select_regularizer(W, mask, fold_landmarks=10, **common)
-    assert again.cv_results_[cols].equals(sel.cv_results_[cols])  # same seed, same answer
-    with pytest.raises(ValueError, match="fold_landmarks"):
-        select_regularizer(W, mask, fold_landmarks=0, **common)
-    # refit_options reach the refit alone: the fold scores are unchanged, the refit is that call
-    path = {"warm_start": "nystroem", "landmarks": 8, "exact_stages": 2}
-    warm = select_regularizer(W, mask, fold_landmarks=10, refit_options=path, **common)
-    assert warm.cv_results_[cols].equals(sel.cv_results_[cols])
-    refit = minimize_regularized(
-        MaskedLeastSquares(W, mask), mean_impute(W, mask), gamma=warm.gamma_, tau=warm.tau_,
-        isolation_guard=True, **path,
-    )
-    np.testing.assert_array_equal(warm.result_.x, refit.x)
-    assert warm.result_.n_stages == refit.n_stages > sel.result_.n_stages  # one Nystroem stage more
-    with pytest.raises(ValueError, match="refit option 'tau'"):
-        select_regularizer(W, mask, refit_options={"tau": 1.0}, **common)

@@ -1,20 +1,13 @@
-"""The peers (nldr.baselines.peers): SoftImpute against its optimality condition and cvxpy, the
-scikit-learn imputers against brute force and their contracts (synthetic data, fast)."""
+"""The peers: SoftImpute (nldr.baselines.peers) against its optimality condition and cvxpy; the
+scikit-learn imputers as nldr.model_selection.baseline_grid configures them (synthetic data, fast)."""
 
 import numpy as np
 import pytest
+from sklearn.impute import KNNImputer
 from threadpoolctl import threadpool_limits
 
-from nldr.baselines import (
-    iterative_impute,
-    knn_impute,
-    mean_impute,
-    missforest_impute,
-    singular_value_threshold,
-    soft_impute,
-    soft_impute_objective,
-)
-from nldr.model_selection import baseline_grid, select_imputer
+from nldr.baselines import mean_impute, singular_value_threshold, soft_impute, soft_impute_objective
+from nldr.model_selection import HoldoutSearch, baseline_grid, iterative_imputer, missforest_imputer
 
 
 @pytest.fixture(autouse=True)
@@ -151,90 +144,38 @@ def test_soft_impute_warm_start_reaches_the_same_minimiser():
 # -------------------------------------------------------------------------- scikit-learn's imputers
 
 
-def brute_force_knn(W, mask, k, weights):
-    """Each missing entry (i, j): the k rows observing j nearest to row i under scikit-learn's
-    nan_euclidean distance, sqrt(d / #common * sum over common observed columns of squared differences)."""
-    n, d = W.shape
-    X = np.where(mask, W, 0.0)
-    out = X.copy()
-    for i, j in zip(*np.nonzero(~mask), strict=True):
-        candidates, dist = [], []
-        for r in range(n):
-            if r == i or not mask[r, j]:
-                continue
-            common = mask[i] & mask[r]
-            if not common.any():
-                continue
-            candidates.append(r)
-            dist.append(np.sqrt(d / common.sum() * np.sum((X[i, common] - X[r, common]) ** 2)))
-        order = np.argsort(dist, kind="stable")[:k]
-        rows, dd = np.array(candidates)[order], np.array(dist)[order]
-        w = np.ones_like(dd) if weights == "uniform" else 1.0 / dd
-        out[i, j] = np.sum(w * X[rows, j]) / w.sum()
-    return out
-
-
-@pytest.mark.parametrize("k, weights", [(1, "uniform"), (3, "uniform"), (4, "distance")])
-def test_knn_impute_matches_brute_force(k, weights):
-    _, W, mask = low_rank_problem(n=20, d=5, seed=7)
-    np.testing.assert_allclose(
-        knn_impute(W, mask, n_neighbors=k, weights=weights), brute_force_knn(W, mask, k, weights), rtol=1e-12
-    )
-
-
 def test_chained_imputers_keep_observed_entries_repeat_with_the_seed_and_beat_the_mean():
     X, W, mask = low_rank_problem(n=60, d=6, rank=2, noise=0.05, seed=8)
     sse_mean = np.sum((mean_impute(W, mask) - X) ** 2)
-    for impute in (iterative_impute, missforest_impute):
-        Y = impute(W, mask)
+    for make in (iterative_imputer, missforest_imputer):
+        Y = make().fit_transform(W)
         assert Y.shape == X.shape and np.all(np.isfinite(Y))
         np.testing.assert_array_equal(Y[mask], W[mask])
-        np.testing.assert_array_equal(Y, impute(W, mask))  # seeded: same answer
+        np.testing.assert_array_equal(Y, make().fit_transform(W))  # seeded: same answer
         # rank-2 data with 5 % noise: regression on the other columns must do better than column means
         assert np.sum((Y - X) ** 2) < 0.5 * sse_mean
-    assert not np.array_equal(missforest_impute(W, mask, random_state=1), missforest_impute(W, mask))
+    other_seed = missforest_imputer(random_state=1).fit_transform(W)
+    assert not np.array_equal(other_seed, missforest_imputer().fit_transform(W))
 
 
-PEERS = [
-    ("KNNImputer", lambda W, m: knn_impute(W, m)),
-    ("IterativeImputer", lambda W, m: iterative_impute(W, m)),
-    ("missForest", lambda W, m: missforest_impute(W, m, n_estimators=2, max_iter=1)),
-    ("SoftImpute", lambda W, m: soft_impute(W, m, lam=0.1)),
-]
-
-
-@pytest.mark.parametrize("name, method", PEERS, ids=[p[0] for p in PEERS])
-def test_bad_inputs_raise_value_error_naming_the_argument(name, method):
+def test_soft_impute_refuses_bad_inputs_naming_the_argument():
     X = np.random.default_rng(0).normal(size=(10, 3))
     mask = np.ones_like(X, dtype=bool)
     mask[0, 0] = False
     with pytest.raises(ValueError, match="mask"):
-        method(X, mask[:, :2])
+        soft_impute(X, mask[:, :2], lam=0.1)
     with pytest.raises(ValueError, match="mask"):
-        method(X, np.where(mask, 1, 2))
+        soft_impute(X, np.where(mask, 1, 2), lam=0.1)
     W = X.copy()
     W[1, 1] = np.nan
     with pytest.raises(ValueError, match="observed entries"):
-        method(W, mask)
+        soft_impute(W, mask, lam=0.1)
     with pytest.raises(ValueError, match="W"):
-        method(X[0], mask[0])
+        soft_impute(X[0], mask[0], lam=0.1)
     empty = mask.copy()
     empty[:, 1] = False
     with pytest.raises(ValueError, match="column"):
-        method(X, empty)
-
-
-def test_bad_knobs_raise_value_error_naming_them():
-    _, W, mask = low_rank_problem(n=10, d=3)
-    for call, match in [
-        (lambda: knn_impute(W, mask, n_neighbors=0), "n_neighbors"),
-        (lambda: knn_impute(W, mask, weights="gaussian"), "weights"),
-        (lambda: iterative_impute(W, mask, max_iter=0), "max_iter"),
-        (lambda: missforest_impute(W, mask, max_features=1.5), "max_features"),
-        (lambda: missforest_impute(W, mask, n_estimators=0), "n_estimators"),
-    ]:
-        with pytest.raises(ValueError, match=match):
-            call()
+        soft_impute(X, empty, lam=0.1)
 
 
 # ---------------------------------------------------------------------------------------- grids
@@ -242,21 +183,18 @@ def test_bad_knobs_raise_value_error_naming_them():
 
 def test_peer_grids_and_selection_with_and_without_a_knob():
     X, W, mask = low_rank_problem(n=25, d=5, seed=9)
-    impute, grid = baseline_grid("KNNImputer", W, mask)
-    assert impute is knn_impute and grid == {
+    estimator, grid = baseline_grid("KNNImputer", W)
+    assert isinstance(estimator, KNNImputer) and grid == {
         "n_neighbors": [1, 2, 3, 5, 10, 20],
         "weights": ["uniform", "distance"],
     }
-    impute, grid = baseline_grid("SoftImpute", W, mask)
-    # the largest lam is 0.3 of the value at which the completion is mean imputation
-    mu = np.array([W[mask[:, j], j].mean() for j in range(W.shape[1])])
-    top = np.linalg.svd(np.where(mask, W, mu) - mu, compute_uv=False)[0]
-    assert impute is soft_impute and max(grid["lam"]) == pytest.approx(0.3 * top, rel=1e-12)
-    sel = select_imputer(impute, W, mask, grid, n_folds=3, random_state=0)
-    assert sel.best_params_["lam"] in grid["lam"] and len(sel.cv_results_) == len(grid["lam"])
-    impute, grid = baseline_grid("IterativeImputer", W, mask)
+    search = HoldoutSearch(estimator, grid, n_folds=3).fit(W)
+    assert search.best_params_["n_neighbors"] in grid["n_neighbors"]
+    estimator, grid = baseline_grid("IterativeImputer", W)
     assert grid == {}
-    sel = select_imputer(impute, W, mask, grid, n_folds=3, random_state=0)
-    assert sel.best_params_ == {} and len(sel.cv_results_) == 1
-    np.testing.assert_array_equal(sel.result_, iterative_impute(W, mask))
-    assert baseline_grid("missForest", W, mask)[1] == {"max_features": [1 / 3, 1.0]}
+    search = HoldoutSearch(estimator, grid, n_folds=3, random_state=0)
+    assert search.fit(W).best_params_ == {} and len(search.cv_results_["params"]) == 1
+    np.testing.assert_array_equal(search.transform(W), iterative_imputer().fit_transform(W))
+    assert baseline_grid("missForest", W)[1] == {"estimator__max_features": [1 / 3, 1.0]}
+    with pytest.raises(ValueError, match="method"):
+        baseline_grid("PCA", W)

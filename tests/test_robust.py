@@ -280,31 +280,36 @@ def test_absolute_fold_score_and_unknown_score():
         check_score("huber")
 
 
-def test_select_huber_regularizer_applies_its_delta_rule():
-    from nldr.baselines import mean_impute
-    from nldr.model_selection import select_huber_regularizer
+def test_robust_scale_delta_is_the_rule_on_the_least_squares_fits_residuals_of_its_own_training_entries():
+    from sklearn.base import BaseEstimator, TransformerMixin
 
-    rng = np.random.default_rng(2)
-    t = np.sort(rng.uniform(0, 2 * np.pi, 30))
-    X = np.column_stack([np.cos(t), np.sin(t), np.cos(t + 1), np.sin(t + 1), 0.3 * t])
-    mask = rng.random(X.shape) > 0.1
-    mask[0] = True  # every column observed
-    W, _ = gross_corruption(X, mask, [0.1], 0)[0.1]
-    W = np.where(mask, W, np.nan)
-    gamma = 0.25 * median_gamma(W, mask)
-    sel = select_huber_regularizer(W, mask, taus=[0.3, 3.0], gammas=[gamma], n_folds=2, rho_growth=100.0)
-    assert set(sel.cv_results_["tau"]) == {0.3, 3.0} and sel.tau_ in (0.3, 3.0) and sel.gamma_ == gamma
-    best = sel.cv_results_["mean_test_error"].idxmin()
-    assert sel.tau_ == sel.cv_results_["tau"][best]
-    # the refit's delta is the rule applied to the least-squares fit on every observed entry
-    ls = minimize_regularized(
-        MaskedLeastSquares(W, mask), mean_impute(W, mask), gamma=gamma, tau=sel.tau_, rho_growth=100.0
-    )
-    assert sel.delta_ == pytest.approx(1.345 * robust_scale((W - ls.x)[mask]), rel=1e-9)
-    with pytest.raises(ValueError, match="delta_factor"):
-        select_huber_regularizer(W, mask, taus=[1.0], delta_factor=0.0)
-    with pytest.raises(ValueError, match="score"):
-        select_huber_regularizer(W, mask, taus=[1.0], score="median")
+    from nldr.model_selection import HoldoutSearch, RobustScaleDelta
+
+    class ColumnMeans(TransformerMixin, BaseEstimator):
+        """Every entry replaced by its column's observed mean (x ``scale`` unless loss is squared)."""
+
+        def __init__(self, loss="huber", delta=1.0, scale=2.0):
+            self.loss, self.delta, self.scale = loss, delta, scale
+
+        def fit(self, X, y=None):
+            factor = 1.0 if self.loss == "squared" else self.scale
+            self.means_ = factor * np.nanmean(X, axis=0)
+            return self
+
+        def transform(self, X):
+            return np.broadcast_to(self.means_, X.shape).copy()
+
+    rng = np.random.default_rng(3)
+    X = rng.standard_normal((40, 4))
+    W = np.where(rng.random(X.shape) > 0.2, X, np.nan)
+    observed = ~np.isnan(W)
+    hook = RobustScaleDelta(2.0)
+    expected = 2.0 * robust_scale((W - np.nanmean(W, axis=0))[observed])
+    assert hook(ColumnMeans(), W) == {"delta": pytest.approx(expected, rel=1e-12)}
+    search = HoldoutSearch(ColumnMeans(), {"scale": [1.0, 3.0]}, n_folds=2, derive=hook).fit(W)
+    assert search.best_estimator_.delta == pytest.approx(expected, rel=1e-12)  # the refit: every entry
+    with pytest.raises(ValueError, match="factor"):
+        RobustScaleDelta(0.0)
 
 
 def test_robust_experiment_jobs_and_summary():

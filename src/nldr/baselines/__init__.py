@@ -7,9 +7,6 @@ from .mean import mean_impute
 from .nearest_neighbour import NearestNeighbourResult, nearest_neighbour_impute
 from .peers import (
     SoftImputeResult,
-    iterative_impute,
-    knn_impute,
-    missforest_impute,
     singular_value_threshold,
     soft_impute,
     soft_impute_objective,
@@ -37,9 +34,6 @@ __all__ = [
     "fit_kernel_subspace",
     "rkpca_energy",
     "rkpca_impute",
-    "knn_impute",
-    "iterative_impute",
-    "missforest_impute",
     "SoftImputeResult",
     "soft_impute",
     "singular_value_threshold",

@@ -40,8 +40,8 @@ import pandas as pd
 from sklearn.datasets import load_digits
 from sklearn.decomposition import PCA, KernelPCA
 
-from ..data_terms import MaskedLeastSquares
-from ..regularizer import minimize_regularized
+from ..impute import KernelRegularizerImputer
+from ..model_selection import HoldoutSearch
 from ..robust_kpca import RobustKernelPCA
 from .base import Experiment, Job, JobOutput, summary_stats
 
@@ -110,10 +110,9 @@ def _rkpca_predict(gamma, tau, rho):
     return fit
 
 
-def _ours(Y, observed, gamma, tau, schedule):
-    term = MaskedLeastSquares(np.where(observed, Y, 0.0), observed)
-    S0 = np.where(observed, Y, np.nanmean(np.where(observed, Y, np.nan), axis=0)[None, :])
-    return minimize_regularized(term, S0, gamma=gamma, tau=tau, **schedule).x
+def _sum_squared(Y, Y_hat, J) -> float:
+    """||Y_hat[J] - Y[J]||^2, the held-out-pixel score (summed over a part's pixels)."""
+    return float(np.sum((Y_hat - Y)[J] ** 2))
 
 
 def _grids(cv):
@@ -127,7 +126,6 @@ def _grids(cv):
             {"gamma": g, "tau": t, "rho": r}
             for g, t, r in itertools.product(cv["gammas"], cv["rkpca_tau"], cv["rkpca_rho"])
         ],
-        "Ours": [{"gamma": g, "tau": t} for g, t in itertools.product(cv["ours_gammas"], cv["ours_tau"])],
     }
 
 
@@ -195,18 +193,11 @@ class Denoising(Experiment):
             record(method, predict(Y_test, np.ones(Y_test.shape, bool)), best)
 
         if n_sub > 0:
-            Y_sub = Y_test[:n_sub]
-            schedule = dict(ours["schedule"])
-            scores = [
-                _heldout_score(
-                    lambda Y, obs, c=c: _ours(Y, obs, c["gamma"], c["tau"], schedule), Y_sub, parts_sub
-                )
-                for c in grids["Ours"]
-            ]
-            best = grids["Ours"][int(np.argmin(scores))]
-            record(
-                "Ours", _ours(Y_sub, np.ones(Y_sub.shape, bool), best["gamma"], best["tau"], schedule), best
-            )
+            # Ours: transductive on the noisy test images; the pixel parts are the search's folds
+            ours = KernelRegularizerImputer(standardize=False, method="exact", options=dict(ours["schedule"]))
+            grid = {"gamma": list(cv["ours_gammas"]), "tau": list(cv["ours_tau"])}
+            search = HoldoutSearch(ours, grid, folds=parts_sub, scoring=_sum_squared)
+            record("Ours", search.fit_transform(Y_test[:n_sub]), search.best_params_)
         return JobOutput(rows=pd.DataFrame(rows), arrays=arrays)
 
     def summarise(self, runs):

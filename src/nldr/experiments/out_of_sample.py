@@ -49,6 +49,7 @@ from sklearn.impute import IterativeImputer, KNNImputer
 from ..baselines import mean_impute
 from ..data_terms import MaskedLeastSquares
 from ..datasets import load_oil
+from ..model_selection import HoldoutSearch
 from ..preimage import average_solutions
 from ..regularizer import minimize_regularized
 from ..robust_kpca import RobustKernelPCA
@@ -56,7 +57,15 @@ from .base import Experiment, Job, JobOutput, summary_stats
 from .robust import gross_corruption
 from .table2 import random_mask
 
-__all__ = ["OutOfSample", "METHODS", "cv_splits", "select_complete", "select_knn", "select_denoising"]
+__all__ = [
+    "OutOfSample",
+    "METHODS",
+    "cv_splits",
+    "row_folds",
+    "select_complete",
+    "select_knn",
+    "select_denoising",
+]
 
 METHODS = ("complete", "complete (LS)", "complete (Huber)", "KNNImputer", "IterativeImputer", "Ours")
 
@@ -142,16 +151,31 @@ def select_denoising(X, p, share, seed, cv, c) -> tuple[dict, dict]:
     return best["squared"], best["huber"]
 
 
+def row_folds(X, p: float, seed: int, holdout_rows: int, n_folds: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The training rows' hold-out folds as :class:`~nldr.model_selection.HoldoutSearch` takes them:
+    per block of :func:`cv_splits`, ``(fit_rows, hidden)``, the other rows to fit on (bool (n,)) and
+    the block's entries hidden at missing probability p (seed ``seed + 1000 + k``, bool (n, d))."""
+    n, d = X.shape
+    folds = []
+    for k, (fit, held) in enumerate(cv_splits(n, holdout_rows, n_folds, seed)):
+        fit_rows = np.zeros(n, dtype=bool)
+        fit_rows[fit] = True
+        hidden = np.zeros((n, d), dtype=bool)
+        hidden[held] = ~random_mask((held.size, d), p, seed + 1000 + k)
+        folds.append((fit_rows, hidden))
+    return folds
+
+
+def _sse(X, X_hat, hidden) -> float:
+    """Sum of squared errors on the hidden entries (the fold score of these searches)."""
+    return float(np.sum((X_hat - X)[hidden] ** 2))
+
+
 def select_knn(X, p, seed, cv) -> dict:
-    """KNNImputer's neighbours and weights by the same hold-out SSE on training rows."""
-    scores = {}
-    for X_fit, X_held, mask in _cv_folds(X, p, seed, cv):
-        W = np.where(mask, X_held, np.nan)
-        for k, weights in itertools.product(cv["knn_neighbors"], ("uniform", "distance")):
-            X_hat = KNNImputer(n_neighbors=k, weights=weights).fit(X_fit).transform(W)
-            scores[(k, weights)] = scores.get((k, weights), 0.0) + float(np.sum((X_hat - X_held)[~mask] ** 2))
-    k, weights = min(scores, key=scores.get)
-    return {"n_neighbors": k, "weights": weights}
+    """KNNImputer's neighbours and weights by the hold-out SSE on training rows (:func:`row_folds`)."""
+    grid = {"n_neighbors": list(cv["knn_neighbors"]), "weights": ["uniform", "distance"]}
+    folds = row_folds(X, p, seed, cv["holdout_rows"], cv["n_folds"])
+    return HoldoutSearch(KNNImputer(), grid, folds=folds, scoring=_sse, refit=False).fit(X).best_params_
 
 
 def _timed(fn):

@@ -32,23 +32,23 @@ import time
 import numpy as np
 import pandas as pd
 
-from ..baselines import soft_impute
-from ..baselines.rpca import rpca_impute
 from ..datasets import load_oil
-from ..model_selection import (
-    baseline_grid,
-    median_gamma,
-    select_huber_regularizer,
-    select_imputer,
-    select_regularizer,
-)
+from ..impute import KernelRegularizerImputer
+from ..model_selection import HoldoutSearch, RobustScaleDelta, baseline_grid, median_gamma
 from .base import Experiment, Job, JobOutput, summary_stats
 from .table2 import random_mask
 
-__all__ = ["Robust", "METHODS", "gross_corruption", "soft_impute_low_rank"]
+__all__ = ["Robust", "METHODS", "gross_corruption"]
 
 #: Row order of the table.
 METHODS = ("Ours (LS)", "Ours (Huber)", "RPCA", "SoftImpute", "KNNImputer")
+#: The regularizer's fold solves: looser tolerances than the refit's (they only rank candidates).
+FOLD_TOLERANCES = {"tol": 1e-7, "gtol": 1e-4}
+
+
+def _words(params) -> str:
+    """The regularizer's chosen parameters as the table's ``params`` column writes them."""
+    return ", ".join(f"{key}={params[key]:.3g}" for key in ("tau", "gamma", "delta") if key in params)
 
 
 def gross_corruption(X, mask, shares, seed: int, *, low: float = 3.0, high: float = 6.0) -> dict:
@@ -90,12 +90,6 @@ def gross_corruption(X, mask, shares, seed: int, *, low: float = 3.0, high: floa
         outliers[order[:k]] = True
         out[share] = (W.reshape(X.shape), outliers.reshape(X.shape))
     return out
-
-
-def soft_impute_low_rank(W, mask, *, lam: float) -> np.ndarray:
-    """SoftImpute's fitted matrix Z + mu on every entry (observed ones included), shape (n, d)."""
-    res = soft_impute(W, mask, lam=lam)
-    return res.Z + res.column_means[None, :]
 
 
 class Robust(Experiment):
@@ -146,7 +140,7 @@ class Robust(Experiment):
         corrupted = gross_corruption(X, mask, shares, seed, low=sd["low"], high=sd["high"])
         grid = settings["grid"]
         taus = np.logspace(grid["log10_tau"]["min"], grid["log10_tau"]["max"], grid["log10_tau"]["num"])
-        cv = {"n_folds": settings["n_folds"], "random_state": seed}
+        cv = {"n_folds": settings["n_folds"], "random_state": seed}  # the imputers' folds: partitions
         schedule = dict(settings["schedule"])
         rows, arrays = [], {"mask": mask}
         for c in shares:
@@ -171,63 +165,44 @@ class Robust(Experiment):
                 arrays[f"{method}_corrupt{c:g}"] = X_hat
                 say(f"p={p:g} c={c:g} seed={seed} {method:13s} sse={sse:9.3f} {seconds:6.2f}s {params}")
 
+            candidates = {"gamma": [float(g) for g in gammas], "tau": [float(t) for t in taus]}
+            # the regularizer in the data's units with the block's schedule; the fold solves stop
+            # earlier (they only rank), each tau path from the smallest tau up
+            ours = KernelRegularizerImputer(standardize=False, method="exact", options=dict(schedule))
+            search = {
+                "n_folds": settings["n_folds"],
+                "random_state": seed,
+                "holdout": settings["holdout"],
+                "scoring": "absolute",
+                "fold_params": {"options": {**schedule, **FOLD_TOLERANCES}},
+            }
             start = time.perf_counter()
-            ls = select_regularizer(
-                W,
-                mask,
-                taus=taus,
-                gammas=gammas,
-                holdout=settings["holdout"],
-                rule="min",
-                score="absolute",
-                **cv,
-                **schedule,
-            )
-            record(
-                "Ours (LS)",
-                ls.result_.x,
-                time.perf_counter() - start,
-                f"tau={ls.tau_:.3g}, gamma={ls.gamma_:.3g}",
-            )
+            ls = HoldoutSearch(ours, candidates, path="tau", stop_factor=1.5, **search)
+            X_hat = ls.fit_transform(W)
+            record("Ours (LS)", X_hat, time.perf_counter() - start, _words(ls.best_params_))
             start = time.perf_counter()
-            huber = select_huber_regularizer(
-                W,
-                mask,
-                taus=taus,
-                gammas=gammas,
-                delta_factor=settings["delta_factor"],
-                holdout=settings["holdout"],
-                score="absolute",
-                **cv,
-                **schedule,
-            )
-            record(
-                "Ours (Huber)",
-                huber.result_.x,
-                time.perf_counter() - start,
-                f"tau={huber.tau_:.3g}, gamma={huber.gamma_:.3g}, delta={huber.delta_:.3g}",
-            )
+            delta = RobustScaleDelta(settings["delta_factor"])
+            huber = HoldoutSearch(ours.set_params(loss="huber"), candidates, derive=delta, **search)
+            X_hat = huber.fit_transform(W)
+            chosen = {**huber.best_params_, "delta": huber.best_estimator_.delta}
+            record("Ours (Huber)", X_hat, time.perf_counter() - start, _words(chosen))
             start = time.perf_counter()
-            rpca = select_imputer(
-                rpca_impute,
-                W,
-                mask,
-                {"lam_factor": list(settings["rpca_lam_factors"])},
-                score="absolute",
-                **cv,
-            )
-            record("RPCA", rpca.result_.x, time.perf_counter() - start, repr(rpca.best_params_))
+            rpca, grid = baseline_grid("RPCA", W)
+            grid = {"lam_factor": list(settings["rpca_lam_factors"])}
+            rpca = HoldoutSearch(rpca, grid, scoring="absolute", **cv)
+            record("RPCA", rpca.fit_transform(W), time.perf_counter() - start, repr(rpca.best_params_))
             start = time.perf_counter()
-            _, soft_grid = baseline_grid("SoftImpute", W, mask)
-            soft = select_imputer(soft_impute_low_rank, W, mask, soft_grid, score="absolute", **cv)
-            record("SoftImpute", soft.result_, time.perf_counter() - start, repr(soft.best_params_))
+            soft, grid = baseline_grid("SoftImpute", W)
+            # its low-rank fit Z + mu on every entry: the imputed matrix would keep the outliers
+            soft = HoldoutSearch(soft.set_params(keep_observed=False), grid, scoring="absolute", **cv)
+            record("SoftImpute", soft.fit_transform(W), time.perf_counter() - start, repr(soft.best_params_))
             start = time.perf_counter()
             if p > 0:
-                knn_fn, knn_grid = baseline_grid("KNNImputer", W, mask)
-                knn = select_imputer(knn_fn, W, mask, knn_grid, score="absolute", **cv)
-                X_knn, params = knn.result_, repr(knn.best_params_)
+                knn, grid = baseline_grid("KNNImputer", W)
+                knn = HoldoutSearch(knn, grid, scoring="absolute", **cv)
+                X_knn, params = knn.fit_transform(W), repr(knn.best_params_)
             else:  # nothing is missing: an imputer returns the data, outliers and all
-                X_knn, params = np.where(mask, W, np.nan), "nothing to impute"
+                X_knn, params = W, "nothing to impute"
             record("KNNImputer", np.asarray(X_knn, dtype=float), time.perf_counter() - start, params)
         return JobOutput(rows=pd.DataFrame(rows), arrays=arrays)
 

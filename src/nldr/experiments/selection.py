@@ -5,14 +5,14 @@ One job = one missing probability p and one seeded mask (the same masks as Table
 seed + k). Rows, per job:
 
 - ``Ours (paper values)``: the regularizer at the paper's gamma and tau (Table 2's "Ours");
-- ``Ours (CV)``: tau and gamma chosen by :func:`nldr.model_selection.select_regularizer` on the
-  observed entries only (folds hiding the config's ``holdout`` share, its ``rule``), then refitted on
-  all of them;
+- ``Ours (CV)``: tau and gamma chosen by :class:`nldr.model_selection.HoldoutSearch` on the
+  observed entries only (folds hiding the config's ``holdout`` share, its ``rule``; the tau path of
+  each width solved from the smallest tau up, stopped once its error passes 1.5 times its best; the
+  fold solves at looser tolerances), then refitted on all of them;
 - ``Ours (oracle grid point)``: the grid point with the lowest error against the complete matrix.
   It sees ground truth, so it is a reference for how good the grid can be, never a result;
-- ``<baseline> (CV)``: each baseline with a knob, its knob chosen on the same folds
-  (:func:`nldr.model_selection.select_imputer`), and the peers of issue 16 the same way
-  (:func:`nldr.experiments.table2.fit_peer`; IterativeImputer has no knob and is fitted once).
+- ``<baseline> (CV)``: each baseline and peer with a knob, its knob chosen by the same search over
+  :func:`nldr.model_selection.baseline_grid` (IterativeImputer has no knob and is fitted once).
 
 The error is Table 2's: the sum of squared errors over the whole n x d matrix.
 """
@@ -23,23 +23,26 @@ import time
 
 import numpy as np
 import pandas as pd
+from sklearn.base import clone
 
 from .. import paper as paper_numbers
-from ..baselines import mean_impute
-from ..data_terms import MaskedLeastSquares
 from ..datasets import load_oil
-from ..model_selection import median_gamma, select_regularizer
-from ..regularizer import minimize_regularized
+from ..impute import KernelRegularizerImputer
+from ..model_selection import HoldoutSearch, baseline_grid, median_gamma
 from .base import Job, JobOutput, summary_stats
-from .table2 import PEER_ROWS, Table2, fit_peer, random_mask
+from .table2 import PEER_ROWS, Table2, random_mask
 
-__all__ = ["Selection", "SelectionFull", "METHODS", "exact_path"]
+__all__ = ["Selection", "SelectionFull", "METHODS", "exact_path", "regularizer_imputer", "fold_params"]
 
 PAPER = "Ours (paper values)"
 CV = "Ours (CV)"
 ORACLE = "Ours (oracle grid point)"
 #: Row order of the table.
 METHODS = (PAPER, CV, ORACLE, "PPCA (CV)", "PKPCA (CV)", "RKPCA (CV)") + PEER_ROWS
+#: Ours (CV): a tau path stops in a fold once a candidate's error passes this times the path's best.
+STOP_FACTOR = 1.5
+#: Ours (CV): the fold solves' tolerances (they only rank candidates; the refit uses the solver's).
+FOLD_TOLERANCES = {"tol": 1e-7, "gtol": 1e-4}
 
 
 def exact_path(settings, p: float) -> dict:
@@ -51,6 +54,24 @@ def exact_path(settings, p: float) -> dict:
     if low is not None and p <= low["max_p"]:
         path["exact_stages"] = low["exact_stages"]
     return path
+
+
+def regularizer_imputer(settings, p: float) -> KernelRegularizerImputer:
+    """The regularizer of the exact solves, with the paper's settings written out: data in its units
+    (``standardize=False``), the block's ``center`` and penalty ``schedule``, and the path to the exact
+    answer of :func:`exact_path` at missing share p."""
+    raise NotImplementedError
+
+
+def fold_params(settings, ours: KernelRegularizerImputer) -> dict:
+    """Parameters of the CV's fold solves: :data:`FOLD_TOLERANCES`, the exact kernel (or the
+    Nystroem kernel on ``fold_landmarks`` landmark rows), never the refit's path."""
+    raise NotImplementedError
+
+
+def _total_sse(X, X_hat, hidden) -> float:
+    """Table 2's error: the sum of squared errors over the whole matrix (the oracle's score)."""
+    return float(np.sum((X_hat - X) ** 2))
 
 
 def _clock() -> tuple[float, float]:
@@ -99,12 +120,11 @@ class Selection(Table2):
         p, seed = job.params["p"], job.params["seed"]
         mask = random_mask(X.shape, p, seed)
         W = np.where(mask, X, np.nan)
-        term, S0 = MaskedLeastSquares(W, mask), mean_impute(W, mask)
-        schedule = dict(settings["schedule"])  # rho0, rho_growth, rho_max
         center = bool(settings["center"])
         grid = settings["grid"]
         taus = np.logspace(grid["log10_tau"]["min"], grid["log10_tau"]["max"], grid["log10_tau"]["num"])
         gammas = np.asarray(grid["gamma_multiples"], dtype=float) * median_gamma(W, mask)
+        candidates = {"gamma": [float(g) for g in gammas], "tau": [float(t) for t in taus]}
         rows = []
 
         def record(method, X_hat, clock, **extra):
@@ -123,62 +143,61 @@ class Selection(Table2):
             )
             say(f"p={p:g} seed={seed} {method:26s} sse={sse:9.3f} {cpu:7.2f} CPU s {extra}")
 
-        path = exact_path(settings, p)  # how the exact solves reach their answer
-
-        def solve(gamma, tau):
-            # the refit of select_regularizer makes this same call (exact kernel, isolation guard on)
-            return minimize_regularized(term, S0, gamma=gamma, tau=tau, center=center, **schedule, **path)
-
+        # the exact solves (paper values, the CV's refit, the oracle): the paper's schedule, the
+        # uncentred kernel, the path to the exact answer the config gives at this p
+        ours = regularizer_imputer(settings, p)
         paper = settings["paper"]
         clock = _clock()
-        res = solve(paper["gamma"], paper["tau"])
-        record(PAPER, res.x, clock, tau=paper["tau"], gamma=paper["gamma"])
+        X_hat = clone(ours).set_params(gamma=paper["gamma"], tau=paper["tau"]).fit_transform(W)
+        record(PAPER, X_hat, clock, tau=paper["tau"], gamma=paper["gamma"])
         one_solve = rows[-1]["cpu_seconds"]
 
         clock = _clock()
-        sel = select_regularizer(
-            W,
-            mask,
-            taus=taus,
-            gammas=gammas,
-            center=center,
+        search = HoldoutSearch(
+            ours,
+            candidates,
             n_folds=settings["n_folds"],
             holdout=settings["holdout"],
-            rule=settings["rule"],
             random_state=seed,
-            fold_landmarks=settings.get("fold_landmarks"),
-            refit_options=path,
-            **schedule,
+            rule=settings["rule"],
+            prefer=("tau", "gamma"),  # the smallest tau, then the widest kernel
+            path="tau",
+            stop_factor=STOP_FACTOR,
+            fold_params=fold_params(settings, ours),
         )
-        record(CV, sel.result_.x, clock, tau=sel.tau_, gamma=sel.gamma_)
+        X_hat = search.fit_transform(W)
+        best = search.best_params_
+        record(CV, X_hat, clock, tau=best["tau"], gamma=best["gamma"])
         rows[-1]["solves"] = rows[-1]["cpu_seconds"] / one_solve
 
-        # the oracle: every grid point on all observed entries, scored against the complete matrix; the
-        # CV's refit is the same call at its grid point, so that solve is taken from it, not repeated
+        # the oracle: every grid point fitted on all observed entries and scored against the complete
+        # matrix (the search with ground truth as its one fold, hiding exactly the missing entries)
         clock = _clock()
-        oracle = []
-        for gamma in gammas:
-            for tau in taus:
-                chosen = float(gamma) == sel.gamma_ and float(tau) == sel.tau_
-                x = sel.result_.x if chosen else solve(float(gamma), float(tau)).x
-                oracle.append((float(np.sum((x - X) ** 2)), float(tau), float(gamma), x))
-        best = min(oracle, key=lambda item: item[0])
-        record(ORACLE, best[3], clock, tau=best[1], gamma=best[2])
+        oracle = HoldoutSearch(ours, candidates, folds=[~mask], scoring=_total_sse, refit=False).fit(X)
+        k = oracle.best_index_
+        best = oracle.cv_results_["params"][k]
+        X_hat = clone(ours).set_params(**best).fit_transform(W)
+        record(ORACLE, X_hat, clock, tau=best["tau"], gamma=best["gamma"])
 
         for method in settings["baselines"]:
             clock = _clock()
-            fit = fit_peer(method, W, mask, n_folds=settings["n_folds"], seed=seed)
-            record(fit["method"], fit["x"], clock, params=fit["params"])
+            estimator, param_grid = baseline_grid(method, W)
+            if param_grid:
+                peer = HoldoutSearch(estimator, param_grid, n_folds=settings["n_folds"], random_state=seed)
+                X_hat, label, params = peer.fit_transform(W), f"{method} (CV)", repr(peer.best_params_)
+            else:
+                X_hat, label, params = clone(estimator).fit_transform(W), method, "{}"
+            record(label, X_hat, clock, params=params)
 
-        cv = sel.cv_results_
+        cv, truth = search.cv_results_, oracle.cv_results_
         arrays = {
-            "cv_tau": cv["tau"].to_numpy(),
-            "cv_gamma": cv["gamma"].to_numpy(),
-            "cv_error": cv["mean_test_error"].to_numpy(),
-            "cv_error_sd": cv["std_test_error"].to_numpy(),
-            "oracle_sse": np.array([o[0] for o in oracle]),
-            "oracle_tau": np.array([o[1] for o in oracle]),
-            "oracle_gamma": np.array([o[2] for o in oracle]),
+            "cv_tau": cv["param_tau"].astype(float),
+            "cv_gamma": cv["param_gamma"].astype(float),
+            "cv_error": cv["mean_test_error"],
+            "cv_error_sd": cv["std_test_error"],
+            "oracle_sse": truth["mean_test_error"],
+            "oracle_tau": truth["param_tau"].astype(float),
+            "oracle_gamma": truth["param_gamma"].astype(float),
         }
         return JobOutput(rows=pd.DataFrame(rows), arrays=arrays)
 

@@ -18,14 +18,13 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 import pandas as pd
+from sklearn.base import clone
+from sklearn.impute import SimpleImputer
 
 from .. import paper as paper_numbers
 from .._validation import as_float_matrix
-from ..baselines import mean_impute, nearest_neighbour_impute, pkpca_impute, ppca_impute, rkpca_impute
-from ..data_terms import MaskedLeastSquares
 from ..datasets import load_oil, load_oil_rows
-from ..model_selection import baseline_grid, select_imputer
-from ..regularizer import minimize_regularized
+from ..model_selection import HoldoutSearch, baseline_grid
 from .base import Experiment, Job, JobOutput, summary_stats
 
 __all__ = [
@@ -33,8 +32,8 @@ __all__ = [
     "PEERS",
     "PEER_ROWS",
     "random_mask",
+    "paper_methods",
     "run_mask",
-    "fit_peer",
     "run_peers",
     "summarise",
     "Table2",
@@ -66,44 +65,38 @@ def random_mask(shape: tuple[int, int], p: float, seed: int) -> np.ndarray:
             return mask
 
 
-def _ours(W, mask, params):
-    S0 = mean_impute(W, mask)
-    res = minimize_regularized(MaskedLeastSquares(W, mask), S0, **params)
-    return res.x, res.success, res.nit
+def paper_methods(settings: Mapping) -> dict:
+    """Table 2's methods as estimators, with the paper's settings written out (config ``table2``).
+
+    ``methods.<name>`` are the estimator's keyword arguments; the width ``gamma`` is the block's
+    (PKPCA, RKPCA and Ours), and ``ours`` (e.g. a Nystroem kernel at scale) is laid over Ours's.
+    """
+    from ..impute import (
+        KernelRegularizerImputer,
+        NearestNeighbourImputer,
+        PKPCAImputer,
+        PPCAImputer,
+        RKPCAImputer,
+    )
+
+    kwargs = {name: dict(values) for name, values in settings["methods"].items()}
+    for name in ("PKPCA", "RKPCA", "Ours"):
+        kwargs.setdefault(name, {}).setdefault("gamma", settings["gamma"])
+    ours = {**kwargs["Ours"], **settings.get("ours", {})}
+    return {
+        "mean": SimpleImputer(strategy="mean"),
+        "1-NN": NearestNeighbourImputer(**kwargs.get("1-NN", {})),
+        "PPCA": PPCAImputer(**kwargs.get("PPCA", {})),
+        "PKPCA": PKPCAImputer(**kwargs["PKPCA"]),
+        "RKPCA": RKPCAImputer(**kwargs["RKPCA"]),
+        "Ours": KernelRegularizerImputer(**ours),
+    }
 
 
-def _mean(W, mask, params):
-    return mean_impute(W, mask), True, 0
-
-
-def _nn(W, mask, params):
-    res = nearest_neighbour_impute(W, mask)
-    return res.x, True, 0
-
-
-def _ppca(W, mask, params):
-    res = ppca_impute(W, mask, **params)
-    return res.x, res.success, res.nit
-
-
-def _pkpca(W, mask, params):
-    res = pkpca_impute(W, mask, **params)
-    return res.x, res.success, res.nit
-
-
-def _rkpca(W, mask, params):
-    res = rkpca_impute(W, mask, **params)
-    return res.x, res.success, res.nit
-
-
-_RUNNERS: dict[str, Callable] = {
-    "mean": _mean,
-    "1-NN": _nn,
-    "PPCA": _ppca,
-    "PKPCA": _pkpca,
-    "RKPCA": _rkpca,
-    "Ours": _ours,
-}
+def _outcome(estimator) -> tuple[bool, int]:
+    """(converged, iterations) of a fitted estimator's solve; (True, 0) for one without a solver."""
+    result = getattr(estimator, "result_", None)
+    return (True, 0) if result is None else (bool(result.success), int(result.nit))
 
 
 def run_mask(
@@ -111,19 +104,17 @@ def run_mask(
     *,
     p: float,
     seed: int,
-    params: Mapping[str, Mapping] | None = None,
-    methods=METHODS,
+    estimators: Mapping,
     progress: Callable[[str], None] | None = None,
 ) -> pd.DataFrame:
-    """Complete one seeded mask of X with every method.
+    """Complete one seeded mask of X with every estimator.
 
     Parameters
     ----------
     X : (n, d) the complete ground-truth matrix.
     p : missing probability per entry.
     seed : seed of the mask.
-    params : per-method keyword arguments, e.g. ``{"Ours": {"gamma": 0.075, "tau": 0.1}}``.
-    methods : which of :data:`METHODS` to run.
+    estimators : method name -> unfitted imputer (NaN marks missing), e.g. :func:`paper_methods`.
     progress : optional callback receiving one line per finished method.
 
     Returns
@@ -133,21 +124,22 @@ def run_mask(
     n_missing``.
     """
     X = as_float_matrix(X, "X")
-    unknown = set(methods) - set(_RUNNERS)
-    if unknown:
-        raise ValueError(f"unknown methods {sorted(unknown)}; choose from {METHODS}")
-    params = dict(params or {})
     mask = random_mask(X.shape, p, seed)
     W = np.where(mask, X, np.nan)
     rows = []
-    for method in methods:
+    for method, estimator in estimators.items():
         start = time.perf_counter()
-        X_hat, converged, n_iter = _RUNNERS[method](W, mask, dict(params.get(method, {})))
+        fitted = clone(estimator)
+        try:
+            X_hat = fitted.fit_transform(W)
+        except NotAvailableError:
+            X_hat = None
         seconds = time.perf_counter() - start
         available = X_hat is not None
         sse = float(np.sum((X_hat - X) ** 2)) if available else np.nan
         if available and not np.isfinite(sse):
             raise FloatingPointError(f"{method} returned non-finite values (p={p}, seed={seed})")
+        converged, n_iter = _outcome(fitted) if available else (True, 0)
         rows.append(
             {
                 "p": p,
@@ -155,8 +147,8 @@ def run_mask(
                 "method": method,
                 "sse": sse,
                 "available": available,
-                "converged": bool(converged),
-                "n_iter": int(n_iter),
+                "converged": converged,
+                "n_iter": n_iter,
                 "seconds": seconds,
                 "n_missing": int((~mask).sum()),
             }
@@ -164,38 +156,6 @@ def run_mask(
         if progress is not None:
             progress(f"p={p} seed={seed} {method:6s} sse={sse:9.3f} {seconds:6.2f}s converged={converged}")
     return pd.DataFrame(rows)
-
-
-def fit_peer(method: str, W, mask, *, n_folds: int, seed: int) -> dict:
-    """Complete W with a method of :func:`nldr.model_selection.baseline_grid`, its knob by hold-out CV.
-
-    Parameters
-    ----------
-    method : a name :func:`~nldr.model_selection.baseline_grid` knows (a peer or a baseline with a knob).
-    W : array, shape (n, d), NaN (or anything) where ``mask`` is False.
-    mask : bool array, shape (n, d), True where observed.
-    n_folds : folds of :func:`~nldr.model_selection.select_imputer`.
-    seed : seed of the folds (the mask's seed, so every method of a job sees the same folds).
-
-    Returns
-    -------
-    dict with ``method`` (``"<method> (CV)"``, or the bare name when the grid has no knob: then the
-    method is fitted once, without CV), ``x`` (the completed (n, d) matrix), ``converged``, ``n_iter``
-    (the refit's, where the method reports them, else True and 0) and ``params`` (the chosen knob, repr).
-    """
-    impute, grid = baseline_grid(method, W, mask)
-    if grid:
-        chosen = select_imputer(impute, W, mask, grid, n_folds=n_folds, random_state=seed)
-        output, label, params = chosen.result_, f"{method} (CV)", repr(chosen.best_params_)
-    else:
-        output, label, params = impute(np.where(mask, W, np.nan), mask), method, "{}"
-    return {
-        "method": label,
-        "x": np.asarray(getattr(output, "x", output), dtype=np.float64),
-        "converged": bool(getattr(output, "success", True)),
-        "n_iter": int(getattr(output, "nit", 0)),
-        "params": params,
-    }
 
 
 def run_peers(
@@ -207,7 +167,9 @@ def run_peers(
     n_folds: int = 5,
     progress: Callable[[str], None] | None = None,
 ) -> pd.DataFrame:
-    """Complete the mask of :func:`run_mask` (same p and seed) with each peer, knobs by CV.
+    """Complete the mask of :func:`run_mask` (same p and seed) with each peer, its knob chosen by
+    :class:`~nldr.model_selection.HoldoutSearch` over :func:`~nldr.model_selection.baseline_grid` on
+    the observed entries (folds seeded by the mask's seed; a peer without a knob is fitted once).
 
     Parameters
     ----------
@@ -230,27 +192,35 @@ def run_peers(
     rows = []
     for method in methods:
         start = time.perf_counter()
-        fit = fit_peer(method, W, mask, n_folds=n_folds, seed=seed)
+        estimator, grid = baseline_grid(method, W)
+        if grid:
+            search = HoldoutSearch(estimator, grid, n_folds=n_folds, random_state=seed)
+            X_hat, fitted = search.fit_transform(W), search.best_estimator_
+            label, params = f"{method} (CV)", repr(search.best_params_)
+        else:
+            fitted = clone(estimator)
+            X_hat, label, params = fitted.fit_transform(W), method, "{}"
         seconds = time.perf_counter() - start
-        sse = float(np.sum((fit["x"] - X) ** 2))
+        sse = float(np.sum((X_hat - X) ** 2))
         if not np.isfinite(sse):
             raise FloatingPointError(f"{method} returned non-finite values (p={p}, seed={seed})")
+        converged, n_iter = _outcome(fitted)
         rows.append(
             {
                 "p": p,
                 "seed": seed,
-                "method": fit["method"],
+                "method": label,
                 "sse": sse,
                 "available": True,
-                "converged": fit["converged"],
-                "n_iter": fit["n_iter"],
+                "converged": converged,
+                "n_iter": n_iter,
                 "seconds": seconds,
                 "n_missing": int((~mask).sum()),
-                "params": fit["params"],
+                "params": params,
             }
         )
         if progress is not None:
-            progress(f"p={p} seed={seed} {fit['method']:16s} sse={sse:9.3f} {seconds:6.2f}s {fit['params']}")
+            progress(f"p={p} seed={seed} {label:16s} sse={sse:9.3f} {seconds:6.2f}s {params}")
     return pd.DataFrame(rows)
 
 
@@ -359,13 +329,9 @@ class Table2(Experiment):
 
     def _run_mask(self, X, p, seed, mask, settings, progress):
         """Every method (and every peer this mask runs) on mask number ``mask`` (seed ``seed``)."""
-        params = {name: dict(kwargs) for name, kwargs in settings["methods"].items()}
-        params.setdefault("Ours", {}).update(gamma=settings["gamma"], **settings.get("ours", {}))
-        for name in ("PKPCA", "RKPCA"):
-            params.setdefault(name, {}).setdefault("gamma", settings["gamma"])
         skip = set(settings.get("skip", []))
-        methods = [m for m in METHODS if m not in skip]
-        rows = run_mask(X, p=p, seed=seed, params=params, methods=methods, progress=progress)
+        estimators = {m: e for m, e in paper_methods(settings).items() if m not in skip}
+        rows = run_mask(X, p=p, seed=seed, estimators=estimators, progress=progress)
         landmarks = settings.get("ours", {}).get("landmarks")
         if landmarks is not None:  # not the exact solve: the label says so wherever the row appears
             rows["method"] = rows["method"].replace("Ours", f"Ours (Nystroem {landmarks})")

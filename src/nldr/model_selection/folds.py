@@ -27,18 +27,21 @@ DEFAULT_TAUS = tuple(float(t) for t in np.logspace(-2, 2, 9))
 GAMMA_MULTIPLES = (0.25, 0.5, 1.0)
 
 
-def median_gamma(W, mask) -> float:
+def median_gamma(W, mask=None) -> float:
     """1 / median squared distance between the rows of W after mean imputation.
 
     Parameters
     ----------
     W : array, shape (n, d); entries where ``mask`` is False are ignored.
-    mask : bool array, shape (n, d), True where observed.
+    mask : bool array, shape (n, d), True where observed; default: where W is not NaN.
 
     Returns
     -------
     gamma : float > 0, in 1 / (units of W)^2.
     """
+    if mask is None:
+        W = np.asarray(W, dtype=np.float64)
+        mask = ~np.isnan(W)
     W, mask = check_masked_matrix(W, mask)
     D = squared_distances(mean_fill(W, mask))
     med = float(np.median(D[np.triu_indices(D.shape[0], 1)]))

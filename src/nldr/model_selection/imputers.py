@@ -1,141 +1,77 @@
-"""Hold-out selection of any imputation method's keyword arguments (:func:`select_imputer`) and the
-default grids of the baselines and peers (:func:`baseline_grid`)."""
+"""Default hold-out grids of the baselines and peers, as ``(estimator, param_grid)`` for
+:class:`~nldr.model_selection.HoldoutSearch` (:func:`baseline_grid`)."""
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
-from itertools import product
-
 import numpy as np
-import pandas as pd
-from threadpoolctl import threadpool_limits
+from sklearn.ensemble import ExtraTreesRegressor
 
-from .._cv import run_jobs, say, summarise_folds
-from .._validation import check_count
-from ..baselines import peers, pkpca_impute, ppca_impute, rkpca_impute
-from ..baselines._masked import check_masked_matrix, mean_fill
-from .folds import GAMMA_MULTIPLES, check_score, fold_score, holdout_folds, median_gamma
+# IterativeImputer is still "experimental" in scikit-learn (1.6-1.9): it is importable only after this
+# import, which registers it in sklearn.impute. The import has that side effect only.
+from sklearn.experimental import enable_iterative_imputer  # noqa: F401
+from sklearn.impute import IterativeImputer, KNNImputer
+from sklearn.linear_model import BayesianRidge
 
-__all__ = ["ImputerSelection", "select_imputer", "baseline_grid"]
+from .._validation import as_float_matrix
+from ..baselines._masked import mean_fill
+from .folds import GAMMA_MULTIPLES, median_gamma
+
+__all__ = ["BASELINES", "SOFT_IMPUTE_FRACTIONS", "baseline_grid", "iterative_imputer", "missforest_imputer"]
+
+#: The names :func:`baseline_grid` knows: the paper's baselines with a knob, then the peers.
+BASELINES = ("PPCA", "PKPCA", "RKPCA", "KNNImputer", "IterativeImputer", "missForest", "SoftImpute", "RPCA")
+#: SoftImpute's lam grid, as fractions of the largest singular value of the centred mean-filled matrix
+#: (the lam at which Z = 0): two and a half decades below it.
+SOFT_IMPUTE_FRACTIONS = (0.003, 0.01, 0.03, 0.1, 0.3)
 
 
-@dataclass(repr=False)
-class ImputerSelection:
-    """Outcome of :func:`select_imputer`.
+def iterative_imputer(*, max_iter: int = 10, tol: float = 1e-3, random_state: int = 0) -> IterativeImputer:
+    """scikit-learn's ``IterativeImputer`` with ``BayesianRidge`` from the column means, every column in
+    ascending order of missing entries (its defaults, written out): chained-equation imputation."""
+    return IterativeImputer(
+        estimator=BayesianRidge(),
+        initial_strategy="mean",
+        imputation_order="ascending",
+        max_iter=max_iter,
+        tol=tol,
+        random_state=random_state,
+        keep_empty_features=False,
+    )
 
-    Attributes
-    ----------
-    best_params_ : dict
-        The chosen keyword arguments of the method.
-    cv_results_ : DataFrame
-        One row per candidate: one column per parameter, ``mean_test_error, std_test_error`` (mean
-        squared error per hidden entry over the folds, units of W squared), ``fit_time`` (mean seconds).
-    result_ : object
-        The method's output refitted on every observed entry with ``best_params_``.
-    folds_ : list of bool arrays, shape (n, d)
+
+def missforest_imputer(
+    *, max_features: float = 1.0, n_estimators: int = 10, max_iter: int = 5, random_state: int = 0
+) -> IterativeImputer:
+    """missForest (Stekhoven & Buehlmann 2012) in scikit-learn's form: ``IterativeImputer`` with an
+    ``ExtraTreesRegressor`` per column, from the column means (as scikit-learn's own example).
+
+    ``max_features``: share of the predictor columns drawn at each split (1.0: all; missForest's sqrt
+    rule is about 0.3 at d = 12), the knob of :func:`baseline_grid` (``estimator__max_features``).
+    ``n_estimators``: trees per column and sweep (missForest uses 100). ``max_iter``: sweeps (random
+    trees never meet scikit-learn's ``tol``, so all run; on oil flow 5 are as good as 10).
+    ``random_state`` seeds the trees.
     """
-
-    best_params_: dict
-    cv_results_: pd.DataFrame
-    result_: object
-    folds_: list
-
-    def __repr__(self) -> str:
-        return f"ImputerSelection(best_params_={self.best_params_!r}, candidates={len(self.cv_results_)})"
-
-
-def _completed(output) -> np.ndarray:
-    return np.asarray(getattr(output, "x", output), dtype=np.float64)
-
-
-def _imputer_fold(impute, W, train, hidden, candidates, score="squared", verbose=False, fold=""):
-    with threadpool_limits(1):
-        rows = []
-        W_train = np.where(train, W, np.nan)
-        for k, params in enumerate(candidates):
-            start = time.perf_counter()
-            X_hat = _completed(impute(W_train, train, **params))
-            seconds = time.perf_counter() - start
-            error = fold_score(X_hat, W, hidden, score)
-            rows.append({"candidate": k, "test_error": error, "fit_time": seconds})
-            say(verbose, "select_imputer", f"{fold}{params}: hold-out error {error:.5g} ({seconds:.2f} s)")
-        return rows
+    forest = ExtraTreesRegressor(
+        n_estimators=n_estimators,
+        max_features=max_features,
+        min_samples_leaf=1,
+        random_state=random_state,
+        n_jobs=1,
+    )
+    return IterativeImputer(
+        estimator=forest,
+        initial_strategy="mean",
+        imputation_order="ascending",
+        max_iter=max_iter,
+        tol=1e-3,
+        random_state=random_state,
+        keep_empty_features=False,
+    )
 
 
-def select_imputer(
-    impute: Callable,
-    W,
-    mask,
-    param_grid: Mapping[str, Sequence],
-    *,
-    n_folds: int = 5,
-    random_state=0,
-    n_jobs: int = 1,
-    score: str = "squared",
-    verbose: bool = False,
-) -> ImputerSelection:
-    """Choose the keyword arguments of an imputation method by hold-out cross-validation.
-
-    Parameters
-    ----------
-    impute : callable ``impute(W, mask, **params)``
-        Returns the completed (n, d) matrix, or a result whose ``x`` is that matrix (every baseline of
-        :mod:`nldr.baselines`). It receives W with NaN at the entries it must not see.
-    W : array, shape (n, d); entries where ``mask`` is False are ignored.
-    mask : bool array, shape (n, d), True where observed.
-    param_grid : mapping of parameter name to a non-empty sequence of values
-        Every combination is a candidate (as scikit-learn's ``ParameterGrid``); see
-        :func:`baseline_grid`.
-    n_folds, random_state : as in :func:`select_regularizer` (same seed, same folds).
-    n_jobs : int >= 1
-        Processes over the folds (``impute`` must then be picklable).
-    score : {"squared", "absolute"}, default "squared"
-        Fold score per hidden entry: squared error, or absolute error (robust to gross outliers among
-        the observed entries; :data:`nldr.model_selection.folds.SCORES`). ``cv_results_`` holds it.
-    verbose : bool, default=False
-        Print progress to stdout: a line per candidate fit (its fold, parameters, hold-out error and
-        seconds; from the worker processes when ``n_jobs > 1``), a line per finished fold, the choice.
-
-    Returns
-    -------
-    ImputerSelection
-    """
-    W, mask = check_masked_matrix(W, mask)
-    n_jobs = check_count(n_jobs, "n_jobs")
-    score = check_score(score)
-    if not callable(impute):
-        raise ValueError(f"impute must be callable as impute(W, mask, **params); got {type(impute).__name__}")
-    names = list(param_grid)
-    values = [list(param_grid[name]) for name in names]
-    if any(len(v) == 0 for v in values):
-        raise ValueError("param_grid must give at least one value per parameter")
-    candidates = [dict(zip(names, combo, strict=True)) for combo in product(*values)]
-    folds = holdout_folds(mask, n_folds, random_state)
-    name = getattr(impute, "__name__", type(impute).__name__)
-    say(verbose, "select_imputer", f"{name}: {len(candidates)} candidates, {len(folds)} folds")
-    jobs = [
-        (_imputer_fold, (impute, W, mask & ~h, h, candidates, score, verbose, f"fold {i + 1}/{len(folds)} "))
-        for i, h in enumerate(folds)
-    ]
-
-    def done(finished, total, seconds):
-        say(verbose, "select_imputer", f"folds done: {finished}/{total} ({seconds:.1f} s)")
-
-    rows = [row for fold in run_jobs(jobs, n_jobs, done) for row in fold]
-    summary = summarise_folds(rows, ["candidate"])
-    params = pd.DataFrame(candidates, columns=names) if names else pd.DataFrame(index=range(1))
-    cv_results = pd.concat([params, summary.drop(columns="candidate")], axis=1)
-    best = int(np.argmin(cv_results["mean_test_error"].to_numpy()))
-    say(verbose, "select_imputer", f"chose {candidates[best]}; refitting on every observed entry")
-    with threadpool_limits(1):
-        result = impute(np.where(mask, W, np.nan), mask, **candidates[best])
-    return ImputerSelection(candidates[best], cv_results, result, folds)
-
-
-def baseline_grid(method: str, W, mask) -> tuple[Callable, dict]:
-    """Default ``(impute, param_grid)`` of a baseline or a peer, for :func:`select_imputer`.
+def baseline_grid(method: str, X) -> tuple[object, dict]:
+    """Default ``(estimator, param_grid)`` of a baseline or a peer, for
+    :class:`~nldr.model_selection.HoldoutSearch`.
 
     The paper's baselines with a knob (Table 2):
 
@@ -144,46 +80,51 @@ def baseline_grid(method: str, W, mask) -> tuple[Callable, dict]:
       (the variance rule, or 2, 4, 8).
     - ``"RKPCA"``: width as PKPCA, components 2, 4, 7, 10 (below n).
 
-    The peers of :mod:`nldr.baselines.peers` (not in the paper):
+    The peers (not in the paper):
 
-    - ``"KNNImputer"``: ``n_neighbors`` 1, 2, 3, 5, 10, 20, 50 (below n) x ``weights`` uniform, distance.
-    - ``"IterativeImputer"``: no knob (BayesianRidge learns its own penalty); the grid is the one fixed
-      setting, ``{}``.
-    - ``"missForest"``: ``max_features`` 1/3 (missForest's sqrt(d) rule near d = 12) and 1 (every
-      column, scikit-learn's regression default); 10 trees, 5 sweeps, seed 0.
-    - ``"SoftImpute"``: ``lam`` = :data:`nldr.baselines.peers.SOFT_IMPUTE_FRACTIONS` times the largest
-      singular value of the centred mean-filled matrix (at that value and above, Z = 0).
+    - ``"KNNImputer"``: scikit-learn's, ``n_neighbors`` 1, 2, 3, 5, 10, 20, 50 (below n) x ``weights``
+      uniform, distance.
+    - ``"IterativeImputer"``: :func:`iterative_imputer`; no knob (BayesianRidge learns its own
+      penalty): the grid is the one fixed setting, ``{}``.
+    - ``"missForest"``: :func:`missforest_imputer`, ``max_features`` 1/3 and 1; 10 trees, 5 sweeps.
+    - ``"SoftImpute"``: ``lam`` = :data:`SOFT_IMPUTE_FRACTIONS` times the largest singular value of the
+      centred mean-filled matrix (at that value and above, Z = 0).
+    - ``"RPCA"``: principal component pursuit, ``lam_factor`` 0.5, 1, 2 (times Candes et al.'s weight).
 
     Parameters
     ----------
-    method : {"PPCA", "PKPCA", "RKPCA", "KNNImputer", "IterativeImputer", "missForest", "SoftImpute"}
-    W, mask : the data (n, d) and its observation mask (the grid's widths and sizes depend on them).
+    method : one of :data:`BASELINES`
+    X : array, shape (n, d), NaN where missing (the grid's widths and sizes depend on it).
 
     Returns
     -------
-    impute : callable ``impute(W, mask, **params)``
+    estimator : an unfitted imputer
     param_grid : dict of parameter name -> list of candidate values (every combination is a candidate)
     """
-
-    W, mask = check_masked_matrix(W, mask)
-    n, d = W.shape
-    if method == "PPCA":
-        return ppca_impute, {"n_components": list(range(1, d))}
+    if method not in BASELINES:
+        raise ValueError(f"method must be one of {', '.join(map(repr, BASELINES))}; got {method!r}")
+    X = as_float_matrix(X, "X", allow_nan=True)
+    mask = ~np.isnan(X)
+    n, d = X.shape
     if method == "KNNImputer":
         neighbours = [k for k in (1, 2, 3, 5, 10, 20, 50) if k < n]
-        return peers.knn_impute, {"n_neighbors": neighbours, "weights": list(peers.KNN_WEIGHTS)}
+        return KNNImputer(), {"n_neighbors": neighbours, "weights": ["uniform", "distance"]}
     if method == "IterativeImputer":
-        return peers.iterative_impute, {}
+        return iterative_imputer(), {}
     if method == "missForest":
-        return peers.missforest_impute, {"max_features": [1 / 3, 1.0]}
+        return missforest_imputer(), {"estimator__max_features": [1 / 3, 1.0]}
+    from .. import impute  # the library's estimators import this package's folds
+
+    if method == "PPCA":
+        return impute.PPCAImputer(), {"n_components": list(range(1, d))}
     if method == "SoftImpute":
-        filled = mean_fill(W, mask)
+        filled = mean_fill(np.where(mask, X, 0.0), mask)
         top = float(np.linalg.svd(filled - filled.mean(axis=0), compute_uv=False)[0])
-        return peers.soft_impute, {"lam": [float(f * top) for f in peers.SOFT_IMPUTE_FRACTIONS]}
-    gammas = [float(g) for g in np.asarray(GAMMA_MULTIPLES) * median_gamma(W, mask)]
+        return impute.SoftImputer(), {"lam": [float(f * top) for f in SOFT_IMPUTE_FRACTIONS]}
+    if method == "RPCA":
+        return impute.RobustPCAImputer(), {"lam_factor": [0.5, 1.0, 2.0]}
+    gammas = [float(g) for g in np.asarray(GAMMA_MULTIPLES) * median_gamma(np.where(mask, X, 0.0), mask)]
     if method == "PKPCA":
-        return pkpca_impute, {"gamma": gammas, "n_components": [None] + [q for q in (2, 4, 8) if q < n]}
-    if method == "RKPCA":
-        return rkpca_impute, {"gamma": gammas, "n_components": [q for q in (2, 4, 7, 10) if q < n]}
-    known = ("PPCA", "PKPCA", "RKPCA", "KNNImputer", "IterativeImputer", "missForest", "SoftImpute")
-    raise ValueError(f"method must be one of {', '.join(map(repr, known))}; got {method!r}")
+        components = [None] + [q for q in (2, 4, 8) if q < n]
+        return impute.PKPCAImputer(), {"gamma": gammas, "n_components": components}
+    return impute.RKPCAImputer(), {"gamma": gammas, "n_components": [q for q in (2, 4, 7, 10) if q < n]}
