@@ -25,7 +25,9 @@ def one_blas_thread():
 def solve(W, mask, start, gamma, tau, **options):
     """The regularizer on the observed entries of W from ``start`` (the isolation guard on)."""
     term = MaskedLeastSquares(np.where(mask, W, np.nan), mask)
-    return minimize_regularized(term, start, gamma=gamma, tau=tau, isolation_guard=True, **options).x
+    rho0 = options.pop("rho0", 1.0)
+    opts = {"isolation_guard": True, **options}
+    return minimize_regularized(term, start, gamma=gamma, tau=tau, rho0=rho0, options=opts).x
 
 
 # --------------------------------------------------------------------------------------------------
@@ -199,8 +201,9 @@ def test_isolation_safe_rho0_puts_the_threshold_at_one():
 def test_guard_changes_nothing_when_rho0_is_already_safe():
     _, W, mask = denoising_problem(n=25, d=5)
     term, S0 = MaskedLeastSquares(W, mask), mean_impute(W, mask)
-    plain = minimize_regularized(term, S0, gamma=0.5, tau=0.1, isolation_guard=False)  # rho0 1 >= 0.184
-    guarded = minimize_regularized(term, S0, gamma=0.5, tau=0.1, isolation_guard=True)
+    # rho0 = 1 >= tau sqrt(27/8) = 0.184: the guard has nothing to raise
+    plain = minimize_regularized(term, S0, gamma=0.5, tau=0.1, options={"isolation_guard": False})
+    guarded = minimize_regularized(term, S0, gamma=0.5, tau=0.1, options={"isolation_guard": True})
     np.testing.assert_array_equal(plain.x, guarded.x)
 
 
@@ -208,8 +211,10 @@ def test_hidden_entries_never_escape_along_the_default_tau_grid():
     _, W, mask = denoising_problem()
     term, S0, gamma = MaskedLeastSquares(W, mask), mean_impute(W, mask), median_gamma(W, mask)
     for tau in DEFAULT_TAUS:
-        res = minimize_regularized(term, S0, gamma=gamma, tau=tau, isolation_guard=True)
+        res = minimize_regularized(term, S0, gamma=gamma, tau=tau, options={"isolation_guard": True})
         assert within_observed_range(res.x, W, mask), f"hidden entries escaped at tau={tau}"
     # The test can fail: without the guard the paper's schedule (rho0 = 1) disperses them at tau = 100.
-    escaped = minimize_regularized(term, S0, gamma=gamma, tau=DEFAULT_TAUS[-1], isolation_guard=False)
+    escaped = minimize_regularized(
+        term, S0, gamma=gamma, tau=DEFAULT_TAUS[-1], options={"isolation_guard": False}
+    )
     assert not within_observed_range(escaped.x, W, mask)
