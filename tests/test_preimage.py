@@ -150,10 +150,10 @@ def test_clear_errors():
     with pytest.raises(NotFittedError):
         model.inverse_transform(np.zeros((2, 2)))
     model.fit(X)
-    with pytest.raises(ValueError, match="X must have shape"):
+    with pytest.raises(ValueError, match="3 features"):
         model.complete(X[:, :2], np.ones((25, 2), bool))
-    with pytest.raises(ValueError, match="mask must be a boolean"):
-        model.complete(X, np.ones(X.shape))
+    with pytest.raises(ValueError, match="mask must be boolean"):
+        model.complete(X, np.full(X.shape, 2))
     with pytest.raises(ValueError, match="mask must have"):
         model.complete(X, np.ones((3, 3), bool))
     bad = X.copy()
@@ -298,3 +298,23 @@ def test_clear_errors_of_the_loss_options():
         model.complete(X, every, rho=1.0, loss="huber", delta=-1.0)
     with pytest.raises(ValueError, match="weights"):
         model.complete(X, every, starts="each", weights="inverse")
+
+
+def test_complete_checks_feature_names_as_transform_does():
+    import pandas as pd
+
+    X = data()
+    frame = pd.DataFrame(X, columns=["a", "b", "c"])
+    model = RobustKernelPCA(gamma=0.5, tau=0.5).fit(frame)
+    every = np.ones(X.shape, bool)
+    with pytest.raises(ValueError, match="feature names"):
+        model.transform(frame[["b", "a", "c"]])
+    with pytest.raises(ValueError, match="feature names"):
+        model.complete(frame[["b", "a", "c"]], every)
+    np.testing.assert_array_equal(model.complete(frame, every), X)  # nothing missing: X unchanged
+
+
+def test_inverse_transform_overflow_names_z():
+    model = RobustKernelPCA(gamma=0.5, tau=0.5).fit(data())
+    with pytest.raises(ValueError, match="Z has entries up to"):
+        model.inverse_transform(np.full((1, model.n_components_), 1e200))

@@ -70,3 +70,52 @@ def check_magnitude(values: np.ndarray, name: str) -> None:
             f"{name} has entries up to {largest:.3g} in magnitude; squared errors overflow float64 "
             f"beyond about {limit:.3g} for {values.size} entries. Rescale {name} (e.g. standardise it)"
         )
+
+
+def check_masked_matrix(
+    W, mask, *, require_observed_columns: bool = True, name: str = "W"
+) -> tuple[np.ndarray, np.ndarray]:
+    """The one check of a partially observed matrix; return ``(W, mask)`` with W zero where missing.
+
+    Every entry point that takes data with an observation mask (the baselines, the data terms,
+    :meth:`nldr.robust_kpca.RobustKernelPCA.complete`, the estimators of :mod:`nldr.impute`) calls this,
+    so each refuses the same inputs with the same message.
+
+    Parameters
+    ----------
+    W : array, shape (n, d)
+        Data, samples as rows; entries where ``mask`` is False are ignored (they may be NaN).
+    mask : array of bool, shape (n, d)
+        True where ``W`` is observed. An integer or float array holding only 0 and 1 is read as
+        bool; any other value is refused.
+    require_observed_columns : bool
+        Raise if some column has no observed entry (methods that start from column means need one).
+    name : str
+        What the messages call ``W``.
+
+    Returns
+    -------
+    W : float array, shape (n, d), a copy with zeros at the missing entries
+    mask : bool array, shape (n, d)
+    """
+    W = as_float_matrix(W, name, allow_nan=True)
+    mask_arr = np.asarray(mask)
+    if mask_arr.dtype != bool:
+        if mask_arr.dtype.kind not in "iuf" or not np.isin(mask_arr, (0, 1)).all():
+            raise ValueError(f"mask must be boolean (or 0/1): True where {name} is observed")
+        mask_arr = mask_arr.astype(bool)
+    if mask_arr.shape != W.shape:
+        raise ValueError(
+            f"mask must have the shape of {name} (the same shape); "
+            f"got mask {mask_arr.shape} and {name} {W.shape}"
+        )
+    if not np.all(np.isfinite(W[mask_arr])):
+        raise ValueError(f"{name} has NaN or infinite values at observed entries (where mask is True)")
+    if require_observed_columns:
+        empty = np.flatnonzero(~mask_arr.any(axis=0))
+        if empty.size:
+            raise ValueError(
+                f"mask has no observed entry in column(s) {empty.tolist()} of {name}; "
+                "drop those columns (nothing can be imputed from them)"
+            )
+    return np.where(mask_arr, W, 0.0), mask_arr

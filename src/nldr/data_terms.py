@@ -20,7 +20,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 import scipy.sparse as sp
 
-from ._validation import as_float_matrix, check_magnitude, check_positive
+from ._validation import as_float_matrix, check_magnitude, check_masked_matrix, check_positive
 
 __all__ = ["DataTerm", "MaskedLeastSquares", "Huber", "MaskedHuber", "huber_loss", "check_start"]
 
@@ -69,18 +69,9 @@ class MaskedLeastSquares:
     """
 
     def __init__(self, W, mask):
-        mask = np.asarray(mask)
-        if mask.dtype != bool:
-            if not np.isin(mask, (0, 1)).all():
-                raise ValueError("mask must be boolean (or 0/1): True where W is observed")
-            mask = mask.astype(bool)
-        W = as_float_matrix(W, "W", allow_nan=True)
-        if mask.shape != W.shape:
-            raise ValueError(f"mask and W must have the same shape; got {mask.shape} and {W.shape}")
-        if not np.all(np.isfinite(W[mask])):
-            raise ValueError("W has NaN or infinite values at observed entries (where mask is True)")
+        W, mask = check_masked_matrix(W, mask, require_observed_columns=False)
         check_magnitude(W[mask], "W")
-        self.W = np.where(mask, W, 0.0)
+        self.W = W
         self.mask = mask
         self.shape = W.shape
         self._observed = np.flatnonzero(mask.ravel())

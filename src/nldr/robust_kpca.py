@@ -22,7 +22,13 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ._spectral import EIGENSOLVERS, check_eigensolver, cubic_threshold, leading_eigenpairs, shrink, spectrum
 from ._threads import blas_threads_for
-from ._validation import check_count, check_positive, check_symmetric_kernel
+from ._validation import (
+    check_count,
+    check_magnitude,
+    check_masked_matrix,
+    check_positive,
+    check_symmetric_kernel,
+)
 from .kernels import center_cross_kernel, center_kernel, rbf_kernel
 from .preimage import LOSSES, Subspace, average_solutions, complete_rows, nearest_rows, preimage
 
@@ -295,6 +301,7 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
             )
         if not np.all(np.isfinite(Z)):
             raise ValueError("Z contains NaN or infinite values")
+        check_magnitude(Z, "Z")  # the distances to the training coordinates square Z
         T = self.eigenvectors_ * self.singular_values_[None, :]
         D = (Z**2).sum(axis=1)[:, None] - 2.0 * Z @ T.T + (T**2).sum(axis=1)[None, :]
         X0 = self.X_fit_[np.argmin(D, axis=1)]
@@ -437,16 +444,9 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
 
     def _check_complete(self, X, mask, rho, loss, delta):
         check_is_fitted(self)
-        X = np.asarray(X, dtype=np.float64)
-        if X.ndim != 2 or X.shape[1] != self.n_features_in_:
-            raise ValueError(f"X must have shape (n_samples, {self.n_features_in_}); got {X.shape}")
-        mask = np.asarray(mask)
-        if mask.dtype != bool:
-            raise ValueError(f"mask must be a boolean array (True = observed); got dtype {mask.dtype}")
-        if mask.shape != X.shape:
-            raise ValueError(f"mask must have X's shape {X.shape}; got {mask.shape}")
-        if not np.all(np.isfinite(X[mask])):
-            raise ValueError("X has NaN or infinite values at observed entries (where mask is True)")
+        # the feature names and count are checked as in transform; then the library's one mask check
+        X = validate_data(self, X, reset=False, dtype=np.float64, ensure_all_finite=False)
+        X, mask = check_masked_matrix(X, mask, require_observed_columns=False, name="X")
         rho = None if rho is None else check_positive(rho, "rho")
         if loss not in LOSSES:
             raise ValueError(f"loss must be one of {LOSSES}; got {loss!r}")
@@ -454,7 +454,7 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
             if delta is None:
                 raise ValueError("delta (the Huber threshold, units of X) is required with loss='huber'")
             delta = check_positive(delta, "delta")
-        return np.where(mask, X, 0.0), mask, rho, delta
+        return X, mask, rho, delta
 
     def fit_transform(self, X, y=None):
         """Fit and return the training coordinates ``U diag(l)``, shape (n_samples, n_components_)."""

@@ -1,0 +1,18 @@
+"""scikit-learn imputers: NaN marks a missing entry. The paper's method and every baseline.
+
+Each estimator has ``fit``, ``transform`` and ``fit_transform``, works in a ``Pipeline``, with
+``clone`` and ``GridSearchCV``, and passes scikit-learn's ``check_estimator``. ``fit_transform(X)``
+is the method's (transductive) answer on X; ``transform`` completes rows never seen against the
+model learnt in ``fit`` (rows seen in ``fit`` get their fitted estimate). The solvers stay functions
+underneath (:mod:`nldr.regularizer`, :mod:`nldr.baselines`); each estimator keeps its solver's
+result object as ``result_`` where there is one.
+
+- :class:`KernelRegularizerImputer`: the paper's method, the non-linear dimensionality regularizer.
+
+The mean baseline is scikit-learn's ``SimpleImputer``; ``KNNImputer`` and ``IterativeImputer`` are
+scikit-learn's, used as they are.
+"""
+
+from .regularizer import KernelRegularizerImputer
+
+__all__ = ["KernelRegularizerImputer"]

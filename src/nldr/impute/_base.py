@@ -1,0 +1,138 @@
+"""The base class of every imputer in :mod:`nldr.impute`: NaN marks a missing entry.
+
+One validation path (scikit-learn's ``validate_data`` with NaN allowed, then the library's one mask
+check, :func:`nldr._validation.check_masked_matrix`), one memory of the rows seen in ``fit``, and the
+scikit-learn plumbing (feature names, ``set_output``, tags). A subclass implements two methods:
+
+- ``_solve(W, mask)``: the method on the partially observed training matrix W (zero where missing,
+  mask True where observed; every column observed when ``_require_observed_columns``). It stores
+  what ``transform`` needs on ``self`` and returns ``(X_hat, result)``, the completed (n, d) matrix
+  and the solver's result object (or None);
+- ``_complete(W, mask)``: the completion of rows never seen, against what ``_solve`` learnt.
+
+Rows seen in ``fit``. A transductive method's answer for a row depends on every other row, so a
+training row completed on its own would not be the row ``fit_transform`` returned. ``transform``
+therefore returns the fitted estimate for any row identical to a training row (same values, same
+missing entries), so that ``fit(X).transform(X)`` equals ``fit_transform(X)`` as scikit-learn's
+contract says, and completes the other rows with ``_complete``.
+"""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+from sklearn.base import BaseEstimator, OneToOneFeatureMixin, TransformerMixin
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+from .._validation import check_masked_matrix
+
+__all__ = ["MaskedImputerBase"]
+
+
+def _row_keys(X: np.ndarray) -> list[bytes]:
+    """One hashable key per row; every NaN written the same way (a NaN's bits may vary)."""
+    Y = np.array(X, dtype=np.float64, order="C")
+    Y[np.isnan(Y)] = np.nan
+    Y[Y == 0.0] = 0.0  # -0.0 and 0.0 are the same value
+    return [row.tobytes() for row in Y]
+
+
+class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
+    """Shared machinery of the imputers (not used directly; see the module docstring).
+
+    Attributes set by ``fit``
+    -------------------------
+    n_features_in_ : int
+    feature_names_in_ : array of str, when X has string column names
+    completed_ : array, shape (n_samples, n_features)
+        The method's estimate of the training matrix (what ``fit_transform`` returns).
+    result_ : SolverResult or None
+        The solver's result object, for the methods that have one.
+    """
+
+    #: the method needs an observed entry in every column
+    _require_observed_columns = True
+    #: fewest training rows the method accepts
+    _min_samples = 1
+
+    def _missing_mask(self, X: np.ndarray) -> np.ndarray:
+        if _is_nan_marker(self.missing_values):
+            return np.isnan(X)
+        return (X == self.missing_values) | np.isnan(X)
+
+    def _check_missing_values(self):
+        mv = self.missing_values
+        if _is_nan_marker(mv):
+            return
+        if isinstance(mv, bool) or not isinstance(mv, numbers.Real) or not np.isfinite(mv):
+            raise ValueError(f"missing_values must be np.nan or a finite number; got {mv!r}")
+
+    def _validated(self, X, *, reset: bool) -> tuple[np.ndarray, np.ndarray]:
+        """X as float64 and its observation mask (True = observed); scikit-learn's checks first."""
+        self._check_missing_values()
+        X = validate_data(
+            self,
+            X,
+            reset=reset,
+            dtype=np.float64,
+            ensure_all_finite="allow-nan",
+            ensure_min_samples=self._min_samples if reset else 1,
+            copy=False,
+        )
+        missing = self._missing_mask(X)
+        W, mask = check_masked_matrix(
+            np.where(missing, np.nan, X),
+            ~missing,
+            require_observed_columns=reset and self._require_observed_columns,
+            name="X",
+        )
+        return W, mask
+
+    def _fit(self, X):
+        W, mask = self._validated(X, reset=True)
+        X_hat, result = self._solve(W, mask)
+        self.completed_ = np.asarray(X_hat, dtype=np.float64)
+        self.result_ = result
+        self._seen = {key: i for i, key in reversed(list(enumerate(_row_keys(np.where(mask, W, np.nan)))))}
+        return self.completed_
+
+    def fit(self, X, y=None):
+        """Fit the method to X, shape (n_samples, n_features), NaN (or ``missing_values``) where missing.
+
+        ``y`` is ignored. Returns self.
+        """
+        self._fit(X)
+        return self
+
+    def fit_transform(self, X, y=None):
+        """Fit to X and return the method's estimate of X, shape (n_samples, n_features)."""
+        return self._fit(X).copy()
+
+    def transform(self, X):
+        """Complete X, shape (m, n_features): rows seen in ``fit`` get their fitted estimate, the
+        others are completed against the fitted model (see the class docstring).
+
+        Returns
+        -------
+        X_hat : array, shape (m, n_features)
+        """
+        check_is_fitted(self, "completed_")
+        W, mask = self._validated(X, reset=False)
+        out = np.empty(W.shape)
+        seen = np.array([self._seen.get(key, -1) for key in _row_keys(np.where(mask, W, np.nan))], dtype=int)
+        old = seen >= 0
+        out[old] = self.completed_[seen[old]]
+        new = ~old
+        if new.any():
+            out[new] = self._complete(W[new], mask[new])
+        return out
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.input_tags.allow_nan = True
+        return tags
+
+
+def _is_nan_marker(value) -> bool:
+    return isinstance(value, float) and np.isnan(value)
