@@ -62,13 +62,20 @@ def regularizer_imputer(settings, p: float) -> KernelRegularizerImputer:
     """The regularizer of the exact solves, with the paper's settings written out: data in its units
     (``standardize=False``), the block's ``center`` and penalty ``schedule``, and the path to the exact
     answer of :func:`exact_path` at missing share p."""
-    raise NotImplementedError
+    solver = {**settings["schedule"], **exact_path(settings, p)}
+    return KernelRegularizerImputer(
+        standardize=False, center=bool(settings["center"]), method="exact", options=solver
+    )
 
 
-def fold_params(settings, ours: KernelRegularizerImputer) -> dict:
+def fold_params(settings) -> dict:
     """Parameters of the CV's fold solves: :data:`FOLD_TOLERANCES`, the exact kernel (or the
     Nystroem kernel on ``fold_landmarks`` landmark rows), never the refit's path."""
-    raise NotImplementedError
+    solver = {**settings["schedule"], "options": dict(FOLD_TOLERANCES)}
+    if settings.get("fold_landmarks") is not None:
+        solver["method"] = "nystroem"
+        solver["options"]["landmarks"] = settings["fold_landmarks"]
+    return {"options": solver}
 
 
 def _total_sse(X, X_hat, hidden) -> float:
@@ -122,7 +129,6 @@ class Selection(Table2):
         p, seed = job.params["p"], job.params["seed"]
         mask = random_mask(X.shape, p, seed)
         W = np.where(mask, X, np.nan)
-        center = bool(settings["center"])
         grid = settings["grid"]
         taus = np.logspace(grid["log10_tau"]["min"], grid["log10_tau"]["max"], grid["log10_tau"]["num"])
         gammas = np.asarray(grid["gamma_multiples"], dtype=float) * median_gamma(W, mask)
@@ -165,7 +171,7 @@ class Selection(Table2):
             prefer=("tau", "gamma"),  # the smallest tau, then the widest kernel
             path="tau",
             stop_factor=STOP_FACTOR,
-            fold_params=fold_params(settings, ours),
+            fold_params=fold_params(settings),
         )
         X_hat = search.fit_transform(W)
         best = search.best_params_
