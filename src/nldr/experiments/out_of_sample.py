@@ -11,7 +11,7 @@ One job = one p and one seeded test mask. Methods, all fitted on the same traini
   limit: observed entries kept, missing ones minimise the feature distance to the learned subspace);
 - ``KNNImputer`` and ``IterativeImputer`` (scikit-learn, ``fit`` on the training rows, ``transform`` on
   the masked test rows);
-- ``Ours``: the transductive joint solve, the regularizer (:func:`nldr.regularizer.minimize_regularized`)
+- ``Ours``: the transductive joint solve, the regularizer (:class:`nldr.impute.KernelRegularizerImputer`)
   on training rows and masked test rows together. It costs O(n^2) per evaluation in the joint rows, so it
   runs on the first ``ours.n_train`` training rows and first ``ours.n_test`` test rows, with the paper's
   Table 2 values of gamma and tau (not chosen by CV).
@@ -46,12 +46,10 @@ import pandas as pd
 from sklearn.experimental import enable_iterative_imputer  # noqa: F401
 from sklearn.impute import IterativeImputer, KNNImputer
 
-from ..baselines import mean_impute
-from ..data_terms import MaskedLeastSquares
 from ..datasets import load_oil
+from ..impute import KernelRegularizerImputer
 from ..model_selection import HoldoutSearch
 from ..preimage import average_solutions
-from ..regularizer import minimize_regularized
 from ..robust_kpca import RobustKernelPCA
 from .base import Experiment, Job, JobOutput, summary_stats
 from .robust import gross_corruption
@@ -296,19 +294,10 @@ class OutOfSample(Experiment):
         if ours["n_test"] > 0:
             joint = np.vstack([X_train[: ours["n_train"]], W[:n_sub]])
             joint_mask = np.vstack([np.ones((ours["n_train"], X_test.shape[1]), bool), mask[:n_sub]])
-            term = MaskedLeastSquares(np.where(joint_mask, joint, 0.0), joint_mask)
-            res, seconds = _timed(
-                lambda: minimize_regularized(
-                    term,
-                    mean_impute(joint, joint_mask),
-                    gamma=ours["gamma"],
-                    tau=ours["tau"],
-                    **ours["schedule"],
-                )
-            )
-            record(
-                "Ours", res.x[ours["n_train"] :], seconds, n_sub, {"gamma": ours["gamma"], "tau": ours["tau"]}
-            )
+            paper = {"gamma": ours["gamma"], "tau": ours["tau"]}
+            model = KernelRegularizerImputer(standardize=False, method="exact", options=ours["schedule"], **paper)
+            X_joint, seconds = _timed(lambda: model.fit_transform(np.where(joint_mask, joint, np.nan)))
+            record("Ours", X_joint[ours["n_train"] :], seconds, n_sub, paper)
         return JobOutput(rows=pd.DataFrame(rows))
 
     def summarise(self, runs):
