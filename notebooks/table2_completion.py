@@ -58,11 +58,10 @@ from IPython.display import Markdown, display
 
 from nldr import tables
 from nldr.baselines import mean_impute
-from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import load_oil
 from nldr.experiments.notebook import cached, locate
 from nldr.experiments.table2 import METHODS, PEER_ROWS, random_mask
-from nldr.regularizer import minimize_regularized
+from nldr.impute import KernelRegularizerImputer
 
 # the repository (by its Snakefile), the config and this run's files
 nb = locate("table2", configfile, workdir, results, table, runs, arrays, settings, data_dir)
@@ -129,7 +128,7 @@ res = cached(
     results / "notebook_cache",
     "table2_one_solve",
     {"n_rows": n_rows, "p": p, "seed": seed, "gamma": gamma, "ours": ours},
-    lambda: minimize_regularized(MaskedLeastSquares(W, mask), mean_impute(W, mask), gamma=gamma, **ours),
+    lambda: KernelRegularizerImputer(gamma=gamma, **ours).fit(W).result_,
     recompute=RECOMPUTE,
 )
 print(f"p = {p}, seed = {seed}:", res.message)

@@ -10,12 +10,15 @@ knob is chosen by hold-out CV on them, scored by the absolute error per hidden e
 entries are corrupted too: a squared score would be ruled by the outliers among them, which nothing
 can predict). Rows, per (c, job):
 
-- ``Ours (LS)``: the regularizer with masked least squares,
-  :func:`nldr.model_selection.select_regularizer` over (tau, gamma);
-- ``Ours (Huber)``: the regularizer with :class:`nldr.data_terms.MaskedHuber`,
-  :func:`nldr.model_selection.select_huber_regularizer` over (tau, gamma), delta by the robust-scale
-  rule (1.345 x the MAD scale of the least-squares residuals at the same tau and gamma);
-- ``RPCA``: principal component pursuit (:func:`nldr.baselines.rpca.rpca_impute`), its weight lam as a
+Every search is :class:`nldr.model_selection.HoldoutSearch`:
+
+- ``Ours (LS)``: the regularizer with masked least squares (:class:`nldr.impute.KernelRegularizerImputer`
+  in the data's units) over (tau, gamma), smallest mean error;
+- ``Ours (Huber)``: the regularizer with :class:`nldr.data_terms.MaskedHuber`
+  (:class:`nldr.model_selection.HuberRegularizer`) over (tau, gamma), delta by the robust-scale rule
+  (:class:`~nldr.model_selection.RobustScaleDelta`: 1.345 x the MAD scale of the least-squares
+  residuals at the same tau and gamma, on each fit's own training entries);
+- ``RPCA``: principal component pursuit (:class:`nldr.impute.RobustPCAImputer`), its weight lam as a
   multiple of Candes et al.'s;
 - ``SoftImpute``: its low-rank fit Z + mu on every entry (the imputed matrix would return the outliers
   unchanged), its lam on the grid of :func:`~nldr.model_selection.baseline_grid`;
@@ -34,7 +37,7 @@ import pandas as pd
 
 from ..datasets import load_oil
 from ..impute import KernelRegularizerImputer
-from ..model_selection import HoldoutSearch, RobustScaleDelta, baseline_grid, median_gamma
+from ..model_selection import HoldoutSearch, HuberRegularizer, RobustScaleDelta, baseline_grid, median_gamma
 from .base import Experiment, Job, JobOutput, summary_stats
 from .table2 import random_mask
 
@@ -174,28 +177,32 @@ class Robust(Experiment):
                 "random_state": seed,
                 "holdout": settings["holdout"],
                 "scoring": "absolute",
-                "fold_params": {"options": {**schedule, **FOLD_TOLERANCES}},
             }
+            folds = {**schedule, "options": dict(FOLD_TOLERANCES)}
             start = time.perf_counter()
-            ls = HoldoutSearch(ours, candidates, path="tau", stop_factor=1.5, **search)
+            fold_ls = {"options": folds}
+            ls = HoldoutSearch(ours, candidates, path="tau", stop_factor=1.5, fold_params=fold_ls, **search)
             X_hat = ls.fit_transform(W)
             record("Ours (LS)", X_hat, time.perf_counter() - start, _words(ls.best_params_))
             start = time.perf_counter()
             delta = RobustScaleDelta(settings["delta_factor"])
-            huber = HoldoutSearch(ours.set_params(loss="huber"), candidates, derive=delta, **search)
+            huber = HuberRegularizer(solver=schedule)
+            huber = HoldoutSearch(huber, candidates, derive=delta, fold_params={"solver": folds}, **search)
             X_hat = huber.fit_transform(W)
             chosen = {**huber.best_params_, "delta": huber.best_estimator_.delta}
             record("Ours (Huber)", X_hat, time.perf_counter() - start, _words(chosen))
             start = time.perf_counter()
-            rpca, grid = baseline_grid("RPCA", W)
+            rpca, _ = baseline_grid("RPCA", W)
             grid = {"lam_factor": list(settings["rpca_lam_factors"])}
             rpca = HoldoutSearch(rpca, grid, scoring="absolute", **cv)
             record("RPCA", rpca.fit_transform(W), time.perf_counter() - start, repr(rpca.best_params_))
             start = time.perf_counter()
             soft, grid = baseline_grid("SoftImpute", W)
             # its low-rank fit Z + mu on every entry: the imputed matrix would keep the outliers
-            soft = HoldoutSearch(soft.set_params(keep_observed=False), grid, scoring="absolute", **cv)
-            record("SoftImpute", soft.fit_transform(W), time.perf_counter() - start, repr(soft.best_params_))
+            soft = HoldoutSearch(soft, grid, scoring="absolute", **cv).fit(W)
+            fit = soft.best_estimator_.result_  # the hidden entries were scored on the same Z + mu
+            seconds = time.perf_counter() - start
+            record("SoftImpute", fit.Z + fit.column_means, seconds, repr(soft.best_params_))
             start = time.perf_counter()
             if p > 0:
                 knn, grid = baseline_grid("KNNImputer", W)

@@ -1,14 +1,16 @@
 """Table 2: matrix completion on oil flow, the regularizer against five baselines (and, not in the
 paper, against the imputers people use).
 
-One run = one missing probability p and one seeded mask; every method completes the same masked
-matrix, starting (where it iterates) from mean imputation. The error is the sum of squared errors
-over the whole n x d matrix (docs/REPRODUCTION.md#table-2-error explains why not the root mean square).
+One run = one missing probability p and one seeded mask; every method is an imputer of
+:mod:`nldr.impute` (the mean: scikit-learn's ``SimpleImputer``) with the paper's settings written out
+in the config (:func:`paper_methods`), and completes the same masked matrix (NaN where missing),
+starting (where it iterates) from mean imputation. The error is the sum of squared errors over the
+whole n x d matrix (docs/REPRODUCTION.md#table-2-error explains why not the root mean square).
 
-The peers (issue 16; :mod:`nldr.baselines.peers`) follow the paper's rows: scikit-learn's KNNImputer
-and IterativeImputer, missForest and SoftImpute, each with its knob chosen by hold-out CV on the
-observed entries of the same mask (:func:`fit_peer`); the config can restrict a costly peer to the
-first masks of each p.
+The peers (issue 16) follow the paper's rows: scikit-learn's KNNImputer and IterativeImputer,
+missForest and SoftImpute, each with its knob chosen by :class:`~nldr.model_selection.HoldoutSearch`
+on the observed entries of the same mask (:func:`run_peers`); the config can restrict a costly peer to
+the first masks of each p.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from sklearn.base import clone
 from sklearn.impute import SimpleImputer
 
 from .. import paper as paper_numbers
+from .._options import merge_solver_kwargs
 from .._validation import as_float_matrix
 from ..datasets import load_oil, load_oil_rows
 from ..model_selection import HoldoutSearch, baseline_grid
@@ -82,7 +85,9 @@ def paper_methods(settings: Mapping) -> dict:
     kwargs = {name: dict(values) for name, values in settings["methods"].items()}
     for name in ("PKPCA", "RKPCA", "Ours"):
         kwargs.setdefault(name, {}).setdefault("gamma", settings["gamma"])
-    ours = {**kwargs["Ours"], **settings.get("ours", {})}
+    extra = settings.get("ours", {})  # e.g. table2_all's Nystroem kernel: merged into the solver's options
+    solver = merge_solver_kwargs(kwargs["Ours"].get("options"), extra.get("options"))
+    ours = {**kwargs["Ours"], "options": solver}
     return {
         "mean": SimpleImputer(strategy="mean"),
         "1-NN": NearestNeighbourImputer(**kwargs.get("1-NN", {})),
@@ -130,10 +135,8 @@ def run_mask(
     for method, estimator in estimators.items():
         start = time.perf_counter()
         fitted = clone(estimator)
-        try:
-            X_hat = fitted.fit_transform(W)
-        except NotAvailableError:
-            X_hat = None
+        # the paper's NA: 1-NN has no donor without a fully observed row (its estimator refuses)
+        X_hat = fitted.fit_transform(W) if method != "1-NN" or mask.all(axis=1).any() else None
         seconds = time.perf_counter() - start
         available = X_hat is not None
         sse = float(np.sum((X_hat - X) ** 2)) if available else np.nan
@@ -332,7 +335,7 @@ class Table2(Experiment):
         skip = set(settings.get("skip", []))
         estimators = {m: e for m, e in paper_methods(settings).items() if m not in skip}
         rows = run_mask(X, p=p, seed=seed, estimators=estimators, progress=progress)
-        landmarks = settings.get("ours", {}).get("options", {}).get("landmarks")
+        landmarks = settings.get("ours", {}).get("options", {}).get("options", {}).get("landmarks")
         if landmarks is not None:  # not the exact solve: the label says so wherever the row appears
             rows["method"] = rows["method"].replace("Ours", f"Ours (Nystroem {landmarks})")
         peers = settings["peers"]
@@ -395,7 +398,7 @@ class Table2All(Table2Full):
 
     def caption(self, config):
         s = self.settings(config)
-        ours = s.get("ours", {}).get("options", {})
+        ours = s.get("ours", {}).get("options", {}).get("options", {})
         how = (
             f" Ours (Nystroem {ours['landmarks']}) is the regularizer on the Nystroem approximation of the "
             f"kernel ({ours['landmarks']} landmark samples, "
