@@ -32,12 +32,12 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from nldr.impute import KernelRegularizerImputer
 from sklearn.base import clone
 from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_oil
 from nldr.experiments.table2 import random_mask
+from nldr.impute import KernelRegularizerImputer
 from nldr.model_selection import DEFAULT_TAUS, GAMMA_MULTIPLES, HoldoutSearch, median_gamma
 
 PAPER = {"gamma": 0.075, "tau": 0.1}

@@ -28,12 +28,12 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from nldr.impute import KernelRegularizerImputer
 from sklearn.base import clone
 from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_oil
 from nldr.experiments.table2 import random_mask
+from nldr.impute import KernelRegularizerImputer
 from nldr.model_selection import HoldoutSearch, baseline_grid
 
 #: Table 2's Ours, the paper's settings written out

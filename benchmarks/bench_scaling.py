@@ -10,7 +10,8 @@ Methods (``--methods``):
 - ``Ours (Nystroem m)``: the same with ``method="nystroem"``, ``options={"landmarks": m}``
   (``--landmarks``, seed 0), the opt-in approximation of the kernel;
 - the peers with their knob chosen by 3-fold hold-out CV on the observed entries
-  (:func:`nldr.experiments.table2.fit_peer`, Table 2's rows; ``cpu`` counts CV and refit);
+  (:class:`nldr.model_selection.HoldoutSearch` over :func:`~nldr.model_selection.baseline_grid`, Table
+  2's rows; ``cpu`` counts CV and refit);
 - ``mean`` and ``PPCA`` (q = 9) for reference.
 
 Appends one row per (n, mask, method) to ``--out``/scaling.csv; rows already there are skipped, so a
@@ -30,12 +31,14 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from sklearn.base import clone
 from threadpoolctl import threadpool_limits
 
 from nldr.baselines import mean_impute, ppca_impute
 from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import load_oil_rows
-from nldr.experiments.table2 import PEERS, fit_peer, random_mask
+from nldr.experiments.table2 import PEERS, random_mask
+from nldr.model_selection import HoldoutSearch, baseline_grid
 from nldr.regularizer import minimize_regularized
 
 OURS = {"gamma": 0.075, "tau": 0.1, "center": False, "rho0": 1.0, "rho_growth": 10.0, "rho_max": 1e4}
@@ -54,8 +57,13 @@ def complete(method: str, W, mask, seed: int, landmarks: int):
         label = "Ours" if method == "Ours" else f"Ours (Nystroem {landmarks})"
         res = minimize_regularized(MaskedLeastSquares(W, mask), mean_impute(W, mask), **OURS, **extra)
         return res.x, label, res.nit, res.success
-    fit = fit_peer(method, W, mask, n_folds=3, seed=seed)
-    return fit["x"], fit["method"], fit["n_iter"], fit["converged"]
+    estimator, grid = baseline_grid(method, W)
+    if not grid:
+        return clone(estimator).fit_transform(W), method, 0, True
+    search = HoldoutSearch(estimator, grid, n_folds=3, random_state=seed)
+    result = getattr(search.fit(W).best_estimator_, "result_", None)  # None: scikit-learn's imputers
+    nit, converged = (0, True) if result is None else (result.nit, result.success)
+    return search.transform(W), f"{method} (CV)", nit, converged
 
 
 def main(argv=None) -> None:

@@ -269,15 +269,16 @@ def test_rpca_rejects_bad_input():
 
 
 def test_absolute_fold_score_and_unknown_score():
-    from nldr.model_selection.folds import check_score, fold_score
+    from nldr.model_selection import HoldoutSearch
+    from nldr.model_selection.folds import fold_score
 
     W = np.zeros((2, 2))
     X_hat = np.array([[1.0, -3.0], [0.5, 0.0]])
     hidden = np.array([[True, True], [False, True]])
     assert fold_score(X_hat, W, hidden, "absolute") == pytest.approx(4.0 / 3.0)
     assert fold_score(X_hat, W, hidden) == pytest.approx(10.0 / 3.0)
-    with pytest.raises(ValueError, match="score must be one of"):
-        check_score("huber")
+    with pytest.raises(ValueError, match="scoring must be one of"):
+        HoldoutSearch(None, {}, scoring="huber").fit(np.ones((3, 2)))
 
 
 def test_robust_scale_delta_is_the_rule_on_the_least_squares_fits_residuals_of_its_own_training_entries():

@@ -16,7 +16,6 @@ __all__ = [
     "holdout_folds",
     "fold_score",
     "SCORES",
-    "check_score",
 ]
 
 #: Default tau grid: log-spaced over four decades around the paper's 0.1 (Table 2) and 10 (denoising).
@@ -106,14 +105,8 @@ def holdout_folds(
 SCORES = ("squared", "absolute")
 
 
-def check_score(score: str) -> str:
-    """``score`` if it is one of :data:`SCORES`; a ValueError naming it otherwise."""
-    if score not in SCORES:
-        raise ValueError(f"score must be one of {', '.join(map(repr, SCORES))}; got {score!r}")
-    return score
-
-
 def fold_score(X_hat: np.ndarray, W: np.ndarray, hidden: np.ndarray, score: str = "squared") -> float:
+    """Mean squared (or absolute) error of X_hat against W on the ``hidden`` entries (not empty)."""
     diff = (X_hat - W)[hidden]
     if score == "absolute":
         return float(np.abs(diff).sum()) / diff.size
