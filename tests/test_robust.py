@@ -313,6 +313,28 @@ def test_robust_scale_delta_is_the_rule_on_the_least_squares_fits_residuals_of_i
         RobustScaleDelta(0.0)
 
 
+def test_a_typo_in_a_huber_search_s_solver_options_is_refused_before_any_solve(monkeypatch):
+    import nldr.model_selection.robust as module
+    from nldr.model_selection import HoldoutSearch, HuberRegularizer, RobustScaleDelta
+
+    calls = []
+    monkeypatch.setattr(module, "minimize_regularized", lambda *a, **k: calls.append(1))
+    W = np.where(np.random.default_rng(0).random((12, 3)) > 0.2, 1.0, np.nan)
+    W[0] = 1.0
+    for solver, match in [({"rho_maxx": 1.0}, "rho_maxx"), ({"options": {"tol": -1.0}}, "tol"),
+                          ({"method": "nystroem", "options": {"landmark": 5}}, "landmark")]:  # fmt: skip
+        # the refit's solver (the estimator's) and the folds' (fold_params) are both checked
+        for estimator, folds in [
+            (HuberRegularizer(solver=solver), {}),
+            (HuberRegularizer(), {"solver": solver}),
+        ]:
+            grid = {"tau": [0.1, 1.0]}
+            search = HoldoutSearch(estimator, grid, derive=RobustScaleDelta(), fold_params=folds)
+            with pytest.raises(ValueError, match=match):
+                search.fit(W)
+    assert calls == []
+
+
 def test_robust_experiment_jobs_and_summary():
     import pandas as pd
 

@@ -19,12 +19,13 @@ method can predict.
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Mapping
 
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin, clone
 
-from .._options import merge_solver_kwargs
+from .._options import merge_solver_kwargs, solver_options
 from .._validation import check_positive
 from ..baselines._masked import mean_fill
 from ..data_terms import MaskedHuber, MaskedLeastSquares
@@ -85,6 +86,12 @@ class RobustScaleDelta:
         return f"RobustScaleDelta(factor={self.factor}, least_squares={self.least_squares})"
 
 
+#: keywords of minimize_regularized a HuberRegularizer's ``solver`` may set (the others it sets itself)
+_SOLVER_KEYWORDS = frozenset(inspect.signature(minimize_regularized).parameters) - {
+    "data_term", "S0", "gamma", "tau", "center"
+}
+
+
 class HuberRegularizer(TransformerMixin, BaseEstimator):
     """The regularizer with the Huber data term (:class:`~nldr.data_terms.MaskedHuber`), transductive.
 
@@ -126,6 +133,14 @@ class HuberRegularizer(TransformerMixin, BaseEstimator):
         check_positive(self.delta, "delta")
         if self.solver is not None and not isinstance(self.solver, Mapping):
             raise ValueError(f"solver must be a dict of minimize_regularized's keywords; got {self.solver!r}")
+        solver = dict(self.solver or {})
+        unknown = sorted(set(solver) - _SOLVER_KEYWORDS)
+        if unknown:
+            raise ValueError(
+                f"solver: minimize_regularized takes no keyword {', '.join(map(repr, unknown))}; "
+                f"these are set here or unknown (its others: {', '.join(sorted(_SOLVER_KEYWORDS))})"
+            )
+        solver_options(solver.get("method", "exact"), solver.get("options"))  # the method's own options
 
     def fit_transform(self, X, y=None):
         """Solve on X, shape (n, d), NaN where missing; return the solve's S, shape (n, d)."""
