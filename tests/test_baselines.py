@@ -5,18 +5,11 @@ import pytest
 from scipy.stats import multivariate_normal
 from threadpoolctl import threadpool_limits
 
-from nldr.baselines import (
-    fit_kernel_subspace,
-    mean_impute,
-    nearest_neighbour_impute,
-    pkpca_impute,
-    pkpca_objective,
-    ppca_impute,
-    ppca_log_likelihood,
-    rkpca_energy,
-    rkpca_impute,
-)
+from nldr.baselines import mean_impute, nearest_neighbour_impute, pkpca_impute, ppca_impute, rkpca_impute
 from nldr.baselines._lbfgs import outer_loop_outcome
+from nldr.baselines.pkpca import _objective as pkpca_objective
+from nldr.baselines.ppca import _e_step
+from nldr.baselines.rkpca import _energy, _fit_subspace
 from nldr.kernels import center_kernel, d_med_width, rbf_kernel
 from nldr.result import CONVERGED, INACCURATE, MAX_ITER
 
@@ -155,6 +148,24 @@ def test_ppca_reports_the_final_likelihood_and_iteration_limit(rng):
     assert res.nit == 2 and not res.success and res.status == MAX_ITER
     ll = ppca_log_likelihood(with_nans(X, mask), mask, res.mean, res.components, res.noise_variance)
     np.testing.assert_allclose(ll, res.log_likelihood_history[-1], rtol=1e-12)
+
+
+def ppca_log_likelihood(W, mask, mean, components, noise_variance):
+    """The marginal log-likelihood of the observed entries, from the E-step the solver runs."""
+    return _e_step(np.where(mask, W, 0.0), mask, mean, components, noise_variance).log_likelihood
+
+
+def fit_kernel_subspace(X, gamma, q):
+    return _fit_subspace(X, gamma, q)
+
+
+def rkpca_energy(Y, W, mask, subspace, weight):
+    return _energy(Y, np.where(mask, W, 0.0), mask, subspace, weight)
+
+
+def test_ppca_needs_two_rows():
+    with pytest.raises(ValueError, match="at least 2 rows"):
+        ppca_impute(np.ones((1, 3)), np.ones((1, 3), bool), n_components=1)
 
 
 # --------------------------------------------------------------------------------------- PKPCA
@@ -337,4 +348,4 @@ def test_bad_parameters_raise_value_error(rng):
     with pytest.raises(ValueError, match="weight"):
         rkpca_impute(X, mask, 0.5, weight=-1.0)
     with pytest.raises(ValueError, match="n_components"):
-        pkpca_objective(X, 0.5, 10)
+        pkpca_impute(X, mask, 0.5, n_components=10)

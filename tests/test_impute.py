@@ -12,10 +12,27 @@ from sklearn.utils.estimator_checks import parametrize_with_checks
 
 from nldr.baselines import mean_impute
 from nldr.data_terms import MaskedLeastSquares
-from nldr.impute import KernelRegularizerImputer
+from nldr.impute import (
+    KernelRegularizerImputer,
+    NearestNeighbourImputer,
+    PKPCAImputer,
+    PPCAImputer,
+    RKPCAImputer,
+    RobustPCAImputer,
+    SoftImputer,
+)
+from nldr.impute.regularizer import MEDIAN_RULE_MULTIPLE
 from nldr.regularizer import minimize_regularized
 
-ESTIMATORS = [KernelRegularizerImputer()]
+ESTIMATORS = [
+    KernelRegularizerImputer(),
+    PPCAImputer(),
+    PKPCAImputer(),
+    RKPCAImputer(),
+    NearestNeighbourImputer(),
+    SoftImputer(),
+    RobustPCAImputer(),
+]
 
 
 @parametrize_with_checks(ESTIMATORS)
@@ -53,7 +70,7 @@ def test_standardised_solve_is_the_solve_on_standardised_columns(rng):
     sd = np.nanstd(W, axis=0)
     Z = (W - mu) / sd
     ref = minimize_regularized(MaskedLeastSquares(Z, mask), mean_impute(Z, mask), gamma=0.3, tau=0.3)
-    est = KernelRegularizerImputer(gamma=0.3, method="exact").fit(W)
+    est = KernelRegularizerImputer(gamma=0.3, tau=0.3, method="exact").fit(W)
     np.testing.assert_allclose(est.mean_, mu, rtol=1e-12)
     np.testing.assert_allclose(est.scale_, sd, rtol=1e-12)
     # the same problem up to rounding in the standardisation: the same minimiser to the solver's tolerance
@@ -66,7 +83,7 @@ def test_default_width_is_the_median_rule_in_standardised_units(rng):
     est = KernelRegularizerImputer(method="exact").fit(W)
     S0 = mean_impute((W - est.mean_) / est.scale_, mask)
     d2 = ((S0[:, None, :] - S0[None, :, :]) ** 2).sum(axis=2)[np.triu_indices(30, 1)]
-    assert est.gamma_ == pytest.approx(1.0 / np.median(d2), rel=1e-12)
+    assert est.gamma_ == pytest.approx(MEDIAN_RULE_MULTIPLE / np.median(d2), rel=1e-12)
 
 
 def test_completion_beats_mean_imputation_on_a_surface(rng):

@@ -11,9 +11,9 @@ from .peers import (
     soft_impute,
     soft_impute_objective,
 )
-from .pkpca import PKPCAResult, pkpca_impute, pkpca_objective
-from .ppca import PPCAResult, ppca_impute, ppca_log_likelihood
-from .rkpca import KernelSubspace, RKPCAResult, fit_kernel_subspace, rkpca_energy, rkpca_impute
+from .pkpca import PKPCAResult, pkpca_impute
+from .ppca import PPCAResult, ppca_impute
+from .rkpca import RKPCAResult, rkpca_impute
 
 __all__ = [
     "kpca_spectrum",
@@ -25,14 +25,9 @@ __all__ = [
     "nearest_neighbour_impute",
     "PPCAResult",
     "ppca_impute",
-    "ppca_log_likelihood",
     "PKPCAResult",
     "pkpca_impute",
-    "pkpca_objective",
-    "KernelSubspace",
     "RKPCAResult",
-    "fit_kernel_subspace",
-    "rkpca_energy",
     "rkpca_impute",
     "SoftImputeResult",
     "soft_impute",

@@ -32,15 +32,14 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
-from .._validation import as_float_matrix, check_count, check_positive
+from .._validation import check_count, check_positive
 from ..kernels import rbf_kernel_vjp, squared_distances
 from ..result import SolverResult
-from ._lbfgs import outer_loop_outcome
+from ._lbfgs import outer_loop
 from ._masked import check_masked_matrix, mean_fill
 
-__all__ = ["PKPCAResult", "pkpca_impute", "pkpca_objective"]
+__all__ = ["PKPCAResult", "pkpca_impute"]
 
 
 @dataclass(kw_only=True, repr=False)
@@ -52,7 +51,7 @@ class PKPCAResult(SolverResult):
     x : array, shape (n, d)
         Completed matrix in the units of W (observed entries of W kept).
     fun : float
-        The objective minimised: the negative profile log-likelihood E (see ``pkpca_objective``) at
+        The objective minimised: the negative profile log-likelihood E (the module's maintenance note) at
         ``x`` with the last outer iteration's q (``objective_history[-1]``).
     status : int
         :data:`~nldr.result.CONVERGED` when the last inner solve converged and q did not change;
@@ -81,6 +80,9 @@ class PKPCAResult(SolverResult):
 
 
 def _objective(X: np.ndarray, gamma: float, q: int) -> tuple[float, np.ndarray]:
+    """E = (n/2) [sum_{i<=q} log lambda_i + (n - q) log sigma^2 + n] (lambda: eigenvalues of K / n,
+    sigma^2 the mean of the discarded ones; minus the log-likelihood up to a constant) and dE/dX (n, d)
+    for complete X (n, d). No validation."""
     n = X.shape[0]
     K = np.exp(-gamma * squared_distances(X))
     mu, U = np.linalg.eigh(K)
@@ -98,36 +100,6 @@ def _components_for_fraction(K: np.ndarray, fraction: float, extra: int) -> int:
     cumulative = np.cumsum(mu) / mu.sum()
     q = int(np.searchsorted(cumulative, fraction - 1e-12) + 1) + extra
     return min(max(q, 1), K.shape[0] - 1)
-
-
-def pkpca_objective(X, gamma: float, n_components: int) -> tuple[float, np.ndarray]:
-    """Negative profile log-likelihood of feature-space PPCA, and its gradient with respect to X.
-
-    Parameters
-    ----------
-    X : array, shape (n, d)
-        Complete data, samples as rows.
-    gamma : float > 0
-        RBF inverse squared width, ``K_ij = exp(-gamma ||x_i - x_j||^2)`` (uncentred).
-    n_components : int, 1 <= n_components < n
-        Number q of feature-space principal components.
-
-    Returns
-    -------
-    value : float
-        ``E = (n/2) [sum_{i<=q} log lambda_i + (n - q) log sigma^2 + n]`` with lambda the eigenvalues
-        of K / n and sigma^2 the mean of the discarded ones; minus the log-likelihood up to a constant.
-    gradient : array, shape (n, d)
-        dE/dX (see the module's maintenance note).
-    """
-    X = as_float_matrix(X, "X")
-    gamma = check_positive(gamma, "gamma")
-    n = X.shape[0]
-    if isinstance(n_components, bool) or not isinstance(n_components, int | np.integer):
-        raise ValueError(f"n_components must be an integer; got {n_components!r}")
-    if not 1 <= n_components < n:
-        raise ValueError(f"n_components must satisfy 1 <= n_components < n = {n}; got {n_components}")
-    return _objective(X, gamma, int(n_components))
 
 
 def pkpca_impute(
@@ -201,48 +173,25 @@ def pkpca_impute(
         K = np.exp(-gamma * squared_distances(X))
         return _components_for_fraction(K, float(variance_fraction), int(extra_components))
 
-    def negative_log_likelihood(v: np.ndarray, q: int) -> tuple[float, np.ndarray]:
-        X[missing] = v
-        value, grad = _objective(X, gamma, q)
-        return value, grad[missing]
-
-    q = choose_q()
-    objective = [_objective(X, gamma, q)[0]]
-    qs: list[int] = []
-    n_inner = 0
-    converged = not missing.any()
-    message = "no missing entries" if converged else ""
-    inner_status = 0
-    n_iter = 0
-    while not converged and n_iter < max_iter:
-        n_iter += 1
-        res = minimize(
-            negative_log_likelihood,
-            X[missing],
-            args=(q,),
-            jac=True,
-            method="L-BFGS-B",
-            options={"maxiter": int(inner_max_iter), "gtol": gtol, "ftol": 1e-15},
-        )
-        X[missing] = res.x
-        n_inner += int(res.nit)
-        message = str(res.message)
-        inner_status = int(res.status)
-        objective.append(float(res.fun))
-        qs.append(q)
-        q = choose_q()
-        converged = bool(res.success) and q == qs[-1]
-    status, message = outer_loop_outcome(converged, inner_status, n_iter, message)
+    loop = outer_loop(
+        X,
+        missing,
+        lambda X, q: _objective(X, gamma, q),
+        choose_q,
+        done=not missing.any(),
+        max_iter=max_iter,
+        inner_max_iter=inner_max_iter,
+        gtol=gtol,
+    )
     return PKPCAResult(
         x=X,
-        fun=float(objective[-1]),
-        status=status,
-        message=message,
-        nit=n_iter,
+        fun=float(loop.objective[-1]),
+        status=loop.status,
+        message=loop.message,
+        nit=loop.nit,
         wall_time=time.perf_counter() - start,
-        n_components=qs[-1] if qs else q,
-        n_components_history=tuple(qs),
-        objective_history=np.asarray(objective),
-        n_inner_iter=n_inner,
+        n_components=loop.n_components,
+        n_components_history=loop.n_components_history,
+        objective_history=loop.objective,
+        n_inner_iter=loop.n_inner_iter,
     )
-

@@ -39,7 +39,7 @@ from ._masked import check_masked_matrix, mean_fill
 
 _NOISE_FLOOR = 1e-6  # sigma^2 >= this times the mean column variance of the mean-imputed data
 _OVERRELAXATION_GROWTH = 1.1  # Salakhutdinov & Roweis's factor for the step multiplier
-__all__ = ["PPCAResult", "ppca_impute", "ppca_log_likelihood"]
+__all__ = ["PPCAResult", "ppca_impute"]
 
 
 @dataclass(kw_only=True, repr=False)
@@ -73,6 +73,23 @@ class PPCAResult(SolverResult):
     components: np.ndarray
     noise_variance: float
     log_likelihood_history: np.ndarray
+
+    def posterior_mean(self, W, mask) -> np.ndarray:
+        """Rows completed under this model: W at the observed entries, E[y_m | y_o] elsewhere.
+
+        Parameters
+        ----------
+        W : array, shape (m, d); entries where ``mask`` is False are ignored (they may be NaN).
+        mask : bool array, shape (m, d), True where observed.
+
+        Returns
+        -------
+        array, shape (m, d)
+        """
+        W, mask = check_masked_matrix(W, mask, require_observed_columns=False)
+        if W.shape[1] != self.mean.size:
+            raise ValueError(f"W must have {self.mean.size} columns like the model; got {W.shape[1]}")
+        return _e_step(W, mask, self.mean, self.components, self.noise_variance).Y
 
 
 @dataclass
@@ -135,37 +152,6 @@ def _pca_init(X: np.ndarray, q: int) -> tuple[np.ndarray, np.ndarray, float]:
     return mu, C, s2
 
 
-def ppca_log_likelihood(W, mask, mean, components, noise_variance) -> float:
-    """Marginal log-likelihood of the observed entries of W under a PPCA model.
-
-    Parameters
-    ----------
-    W : array, shape (n, d)
-        Data; entries where ``mask`` is False are ignored (they may be NaN).
-    mask : array of bool, shape (n, d)
-        True where ``W`` is observed.
-    mean : array, shape (d,)
-    components : array, shape (d, q)
-        Loading matrix.
-    noise_variance : float > 0
-
-    Returns
-    -------
-    float
-        sum over rows of log N(y_o; mean_o, W_o W_o^T + noise_variance I).
-    """
-    W, mask = check_masked_matrix(W, mask, require_observed_columns=False)
-    mean = np.asarray(mean, dtype=np.float64)
-    components = np.asarray(components, dtype=np.float64)
-    if mean.shape != (W.shape[1],):
-        raise ValueError(f"mean must have shape ({W.shape[1]},); got {mean.shape}")
-    if components.ndim != 2 or components.shape[0] != W.shape[1]:
-        raise ValueError(f"components must have shape ({W.shape[1]}, q); got {components.shape}")
-    if not (np.isfinite(noise_variance) and noise_variance > 0):
-        raise ValueError(f"noise_variance must be finite and > 0; got {noise_variance!r}")
-    return _e_step(W, mask, mean, components, float(noise_variance)).log_likelihood
-
-
 def ppca_impute(
     W, mask, n_components: int = 10, *, max_iter: int = 5000, tol: float = 1e-7, accelerate: bool = True
 ) -> PPCAResult:
@@ -203,6 +189,8 @@ def ppca_impute(
     start = time.perf_counter()
     W, mask = check_masked_matrix(W, mask)
     n, d = W.shape
+    if n < 2:
+        raise ValueError(f"W needs at least 2 rows for PPCA (a covariance to start from); got {n}")
     if isinstance(n_components, bool) or not isinstance(n_components, int | np.integer):
         raise ValueError(f"n_components must be an integer; got {n_components!r}")
     if not 1 <= n_components < d:

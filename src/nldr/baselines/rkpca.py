@@ -29,20 +29,19 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
-from .._validation import as_float_matrix, check_count, check_positive
+from .._validation import check_count, check_positive
 from ..kernels import center_kernel, squared_distances
 from ..result import SolverResult
-from ._lbfgs import outer_loop_outcome
+from ._lbfgs import outer_loop
 from ._masked import check_masked_matrix, mean_fill
 
-__all__ = ["KernelSubspace", "RKPCAResult", "fit_kernel_subspace", "rkpca_energy", "rkpca_impute"]
+__all__ = ["KernelSubspace", "RKPCAResult", "rkpca_impute"]
 
 
 @dataclass(frozen=True)
 class KernelSubspace:
-    """A fitted centred-KPCA principal subspace of an RBF kernel (see ``fit_kernel_subspace``).
+    """A fitted centred-KPCA principal subspace of an RBF kernel.
 
     Attributes
     ----------
@@ -106,6 +105,8 @@ def _check_n_components(n_components, n: int) -> None:
 
 
 def _fit_subspace(X: np.ndarray, gamma: float, n_components: int | float) -> KernelSubspace:
+    """The centred-KPCA subspace of complete X (n, d): q = n_components components, or the fewest
+    holding a trace fraction n_components in (0, 1); capped at the numerical rank. No validation."""
     n = X.shape[0]
     K = np.exp(-gamma * squared_distances(X))
     nu, V = np.linalg.eigh(center_kernel(K))
@@ -124,34 +125,12 @@ def _fit_subspace(X: np.ndarray, gamma: float, n_components: int | float) -> Ker
     return KernelSubspace(X.copy(), gamma, A, m, float(m.mean()), nu[:q].copy())
 
 
-def fit_kernel_subspace(X, gamma: float, n_components: int | float) -> KernelSubspace:
-    """Fit the centred-KPCA principal subspace of an RBF kernel.
-
-    Parameters
-    ----------
-    X : array, shape (n, d)
-        Complete training data, samples as rows.
-    gamma : float > 0
-        ``K_ij = exp(-gamma ||x_i - x_j||^2)``.
-    n_components : int or float
-        Number q of components (1 <= q < n), or a fraction in (0, 1) of the centred kernel's trace
-        that the leading components must hold. Capped at the numerical rank.
-
-    Returns
-    -------
-    KernelSubspace
-    """
-    X = as_float_matrix(X, "X")
-    gamma = check_positive(gamma, "gamma")
-    if X.shape[0] < 2:
-        raise ValueError(f"X needs at least 2 samples; got {X.shape[0]}")
-    _check_n_components(n_components, X.shape[0])
-    return _fit_subspace(X, gamma, n_components)
-
-
 def _energy(
     Y: np.ndarray, W: np.ndarray, mask: np.ndarray, subspace: KernelSubspace, weight: float
 ) -> tuple[float, np.ndarray]:
+    """Summed energy sum_j E_proj(y_j) + C ||mask o (Y - W)||^2 of the rows of Y (m, d) against a fixed
+    subspace, and its gradient (m, d); ``weight`` C = inf leaves the data term out (a constraint the
+    caller enforces). No validation."""
     error, grad = subspace.reconstruction_error(Y)
     value = float(error.sum())
     if weight > 0 and np.isfinite(weight):
@@ -159,39 +138,6 @@ def _energy(
         value += weight * float(np.sum(R * R))
         grad = grad + 2.0 * weight * R
     return value, grad
-
-
-def rkpca_energy(Y, W, mask, subspace: KernelSubspace, weight: float) -> tuple[float, np.ndarray]:
-    """Summed RKPCA energy of the rows of Y and its gradient.
-
-    Parameters
-    ----------
-    Y : array, shape (m, d)
-        Candidate samples.
-    W : array, shape (m, d)
-        Observed data; entries where ``mask`` is False are ignored (they may be NaN).
-    mask : array of bool, shape (m, d)
-        True where ``W`` is observed.
-    subspace : KernelSubspace
-        The fixed principal subspace (``fit_kernel_subspace``); its ``X_fit`` needs d columns.
-    weight : float >= 0 or inf
-        C of the data term. With ``inf`` the data term is a hard constraint (Y equals W where
-        observed, which the caller enforces) and is left out of the value.
-
-    Returns
-    -------
-    value : float
-        sum_j E_proj(y_j) + C ||mask o (Y - W)||_F^2.
-    gradient : array, shape (m, d)
-    """
-    Y = as_float_matrix(Y, "Y")
-    W, mask = check_masked_matrix(W, mask, require_observed_columns=False)
-    if W.shape != Y.shape:
-        raise ValueError(f"W must have the shape of Y; got W {W.shape} and Y {Y.shape}")
-    if Y.shape[1] != subspace.X_fit.shape[1]:
-        raise ValueError(f"Y must have {subspace.X_fit.shape[1]} columns like subspace.X_fit; got {Y.shape}")
-    weight = _check_weight(weight)
-    return _energy(Y, W, mask, subspace, weight)
 
 
 def _check_weight(weight) -> float:
@@ -270,7 +216,7 @@ def rkpca_impute(
         RBF inverse squared width (0.075 on oil flow in the paper).
     n_components : int or float
         Components q of the centred KPCA subspace, or a trace fraction in (0, 1) from which q is
-        re-chosen in every outer iteration (see ``fit_kernel_subspace``).
+        re-chosen in every outer iteration (capped at the numerical rank).
     weight : float >= 0 or inf
         C, the weight of the data term on observed entries. ``inf`` (default) keeps observed entries
         fixed and optimises only the missing ones; a finite C lets observed entries move too
@@ -311,52 +257,26 @@ def rkpca_impute(
     Y = mean_fill(W, mask)
     missing = ~mask
     free = missing if not np.isfinite(weight) else np.ones_like(mask)
-
-    def fit(q: int | float) -> KernelSubspace:
-        return _fit_subspace(Y, gamma, q)
-
-    def profile(v: np.ndarray, q: int) -> tuple[float, np.ndarray]:
-        Y[free] = v
-        value, grad = _energy(Y, W, mask, fit(q), weight)
-        return value, grad[free]
-
-    q = fit(n_components).n_components
-    energy = [_energy(Y, W, mask, fit(q), weight)[0]]
-    qs: list[int] = []
-    n_inner = 0
-    converged = not missing.any() and np.isinf(weight)
-    message = "no missing entries" if converged else ""
-    inner_status = 0
-    n_iter = 0
-    while not converged and n_iter < max_iter:
-        n_iter += 1
-        res = minimize(
-            profile,
-            Y[free],
-            args=(q,),
-            jac=True,
-            method="L-BFGS-B",
-            options={"maxiter": int(inner_max_iter), "gtol": gtol, "ftol": 1e-15},
-        )
-        Y[free] = res.x
-        n_inner += int(res.nit)
-        message = str(res.message)
-        inner_status = int(res.status)
-        energy.append(float(res.fun))
-        qs.append(q)
-        q = fit(n_components).n_components
-        converged = bool(res.success) and q == qs[-1]
-    status, message = outer_loop_outcome(converged, inner_status, n_iter, message)
+    loop = outer_loop(
+        Y,
+        free,
+        lambda Y, q: _energy(Y, W, mask, _fit_subspace(Y, gamma, q), weight),
+        lambda: _fit_subspace(Y, gamma, n_components).n_components,
+        done=not missing.any() and np.isinf(weight),
+        max_iter=max_iter,
+        inner_max_iter=inner_max_iter,
+        gtol=gtol,
+    )
     return RKPCAResult(
         x=np.where(mask, W, Y),
-        fun=float(energy[-1]),
-        status=status,
-        message=message,
-        nit=n_iter,
+        fun=float(loop.objective[-1]),
+        status=loop.status,
+        message=loop.message,
+        nit=loop.nit,
         wall_time=time.perf_counter() - start,
         Y=Y,
-        n_components=qs[-1] if qs else q,
-        n_components_history=tuple(qs),
-        energy_history=np.asarray(energy),
-        n_inner_iter=n_inner,
+        n_components=loop.n_components,
+        n_components_history=loop.n_components_history,
+        energy_history=loop.objective,
+        n_inner_iter=loop.n_inner_iter,
     )

@@ -8,11 +8,26 @@ underneath (:mod:`nldr.regularizer`, :mod:`nldr.baselines`); each estimator keep
 result object as ``result_`` where there is one.
 
 - :class:`KernelRegularizerImputer`: the paper's method, the non-linear dimensionality regularizer.
+- The paper's baselines (Table 2): :class:`PPCAImputer`, :class:`PKPCAImputer`,
+  :class:`RKPCAImputer`, :class:`NearestNeighbourImputer` (1-NN).
+- Peers not in the paper: :class:`SoftImputer` (nuclear-norm completion) and
+  :class:`RobustPCAImputer` (linear Robust PCA, for gross errors).
 
 The mean baseline is scikit-learn's ``SimpleImputer``; ``KNNImputer`` and ``IterativeImputer`` are
 scikit-learn's, used as they are.
 """
 
+from .kernel_pca import PKPCAImputer, RKPCAImputer
+from .linear import PPCAImputer, RobustPCAImputer, SoftImputer
+from .neighbours import NearestNeighbourImputer
 from .regularizer import KernelRegularizerImputer
 
-__all__ = ["KernelRegularizerImputer"]
+__all__ = [
+    "KernelRegularizerImputer",
+    "PPCAImputer",
+    "PKPCAImputer",
+    "RKPCAImputer",
+    "NearestNeighbourImputer",
+    "SoftImputer",
+    "RobustPCAImputer",
+]

@@ -49,12 +49,18 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
         The method's estimate of the training matrix (what ``fit_transform`` returns).
     result_ : SolverResult or None
         The solver's result object, for the methods that have one.
+    n_iter_ : int
+        The solver's iteration count (``result_.nit``), where it has one.
     """
+
+    #: the keyword arguments of the solver function that ``options`` may set
+    _option_names: tuple[str, ...] = ()
 
     #: the method needs an observed entry in every column
     _require_observed_columns = True
-    #: fewest training rows the method accepts
+    #: fewest training rows and columns the method accepts
     _min_samples = 1
+    _min_features = 1
 
     def _missing_mask(self, X: np.ndarray) -> np.ndarray:
         if _is_nan_marker(self.missing_values):
@@ -78,6 +84,7 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
             dtype=np.float64,
             ensure_all_finite="allow-nan",
             ensure_min_samples=self._min_samples if reset else 1,
+            ensure_min_features=self._min_features if reset else 1,
             copy=False,
         )
         missing = self._missing_mask(X)
@@ -89,11 +96,26 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
         )
         return W, mask
 
+    def _options(self) -> dict:
+        """``self.options`` checked against the solver's option names (a dict; None means {})."""
+        options = {} if self.options is None else self.options
+        if not isinstance(options, dict):
+            raise ValueError(f"options must be a dict or None; got {type(options).__name__}")
+        unknown = sorted(set(options) - set(self._option_names))
+        if unknown:
+            raise ValueError(
+                f"unknown option(s) {unknown} of {type(self).__name__}; "
+                f"it takes {', '.join(self._option_names) or 'none'}"
+            )
+        return dict(options)
+
     def _fit(self, X):
         W, mask = self._validated(X, reset=True)
         X_hat, result = self._solve(W, mask)
         self.completed_ = np.asarray(X_hat, dtype=np.float64)
         self.result_ = result
+        if hasattr(result, "nit"):
+            self.n_iter_ = int(result.nit)
         self._seen = {key: i for i, key in reversed(list(enumerate(_row_keys(np.where(mask, W, np.nan)))))}
         return self.completed_
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import inspect
+
 import numpy as np
 from sklearn.utils import check_random_state
 
@@ -14,22 +16,25 @@ from ..preimage import Subspace, average_solutions, complete_rows, nearest_rows
 from ..regularizer import minimize_regularized
 from ._base import MaskedImputerBase
 
-__all__ = ["KernelRegularizerImputer", "AUTO_EXACT_MAX_ROWS", "median_rule_gamma", "METHODS"]
+__all__ = ["KernelRegularizerImputer", "AUTO_EXACT_MAX_ROWS", "MEDIAN_RULE_MULTIPLE", "METHODS"]
 
 #: solver paths of ``method``
 METHODS = ("auto", "exact", "nystroem-warm")
 #: ``method="auto"`` solves exactly up to this many rows and warm-starts from the Nystroem kernel above
 #: (docs/PERFORMANCE.md, "The imputer's solver path").
 AUTO_EXACT_MAX_ROWS = 300
+#: the default width is this multiple of 1 / (median squared distance between rows), standardised units
+#: (docs/REPRODUCTION.md, "The imputer's defaults")
+MEDIAN_RULE_MULTIPLE = 0.25
 #: landmarks of the Nystroem warm start
 WARM_LANDMARKS = 100
 
 
-def median_rule_gamma(S: np.ndarray) -> float:
-    """``1 / median ||s_i - s_j||^2`` over the pairs of rows of a complete matrix S (units of S^-2).
+def _median_rule_gamma(S: np.ndarray) -> float:
+    """``MEDIAN_RULE_MULTIPLE / median ||s_i - s_j||^2`` over the pairs of rows of a complete S (units S^-2).
 
     The default width of :class:`KernelRegularizerImputer`: the median pair of rows gets kernel value
-    exp(-1). Rows beyond 2000 are subsampled evenly, which changes the median by well under a percent.
+    exp(-1/4). Beyond 2000 rows an even subsample of 2000 sets the median.
     """
     n = S.shape[0]
     rows = S if n <= 2000 else S[np.linspace(0, n - 1, 2000).astype(int)]
@@ -39,7 +44,11 @@ def median_rule_gamma(S: np.ndarray) -> float:
         raise ValueError(
             "the rows of X (after mean imputation) coincide: the median rule cannot set gamma; pass gamma"
         )
-    return 1.0 / med
+    return MEDIAN_RULE_MULTIPLE / med
+
+
+#: minimize_regularized's keyword arguments that the estimator sets itself
+_SET_HERE = ("data_term", "S0", "gamma", "tau", "center")
 
 
 class KernelRegularizerImputer(MaskedImputerBase):
@@ -63,7 +72,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
     data term is a penalty, not a constraint); ``transform`` keeps the observed entries of new rows.
 
     With no arguments this is the recommended configuration: columns standardised on their observed
-    entries, the width by the median rule in standardised units, tau 0.3 in standardised units, the
+    entries, the width by the median rule in standardised units, tau 0.1 in standardised units, the
     exact solver up to :data:`AUTO_EXACT_MAX_ROWS` rows and the Nystroem warm start above (evidence:
     docs/REPRODUCTION.md, "The imputer's defaults"). The paper's Table 2 is
     ``KernelRegularizerImputer(standardize=False, gamma=0.075, tau=0.1, method="exact")``.
@@ -74,9 +83,10 @@ class KernelRegularizerImputer(MaskedImputerBase):
         The marker of a missing entry (NaN is always missing too).
     gamma : float > 0 or None, default None
         RBF inverse squared width, in 1 / (units of the solved matrix)^2: standardised units when
-        ``standardize``, the data's units otherwise. None: :func:`median_rule_gamma` of the
-        mean-imputed (standardised) matrix.
-    tau : float > 0, default 0.3
+        ``standardize``, the data's units otherwise. None: the median rule on the
+        mean-imputed (standardised) matrix: :data:`MEDIAN_RULE_MULTIPLE` / (median squared distance
+        between its rows).
+    tau : float > 0, default 0.1
         Weight of the trace norm of C (the feature-space data's nuclear norm), in the data term's
         units (squared units of the solved matrix). Larger tau: a lower-dimensional manifold.
     standardize : bool, default True
@@ -144,7 +154,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         missing_values=np.nan,
         *,
         gamma=None,
-        tau=0.3,
+        tau=0.1,
         standardize=True,
         center=False,
         method="auto",
@@ -167,6 +177,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self.random_state = random_state
 
     _min_samples = 2
+    _option_names = tuple(p for p in inspect.signature(minimize_regularized).parameters if p not in _SET_HERE)
 
     def _check_params(self):
         if self.method not in METHODS:
@@ -175,10 +186,6 @@ class KernelRegularizerImputer(MaskedImputerBase):
             raise ValueError(f"starts must be 'mean' or 'each'; got {self.starts!r}")
         if self.weights not in ("uniform", "distance"):
             raise ValueError(f"weights must be 'uniform' or 'distance'; got {self.weights!r}")
-        if self.options is not None and not isinstance(self.options, dict):
-            raise ValueError(
-                f"options must be a dict of minimize_regularized's options or None; got {self.options!r}"
-            )
         check_count(self.n_neighbors, "n_neighbors")
         tau = check_positive(self.tau, "tau")
         gamma = None if self.gamma is None else check_positive(self.gamma, "gamma")
@@ -198,7 +205,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         method = self.method
         if method == "auto":
             method = "exact" if n <= AUTO_EXACT_MAX_ROWS else "nystroem-warm"
-        kwargs = dict(self.options or {})
+        kwargs = self._options()
         if method == "nystroem-warm":
             seed = int(check_random_state(self.random_state).randint(np.iinfo(np.int32).max))
             kwargs = {"warm_start": "nystroem", "landmarks": WARM_LANDMARKS, "landmark_seed": seed} | kwargs
@@ -209,7 +216,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self.mean_, self.scale_ = self._standardisation(W, mask)
         Z = W if not self.standardize else np.where(mask, (W - self.mean_) / self.scale_, 0.0)
         S0 = mean_fill(Z, mask)
-        self.gamma_ = median_rule_gamma(S0) if gamma is None else gamma
+        self.gamma_ = _median_rule_gamma(S0) if gamma is None else gamma
         self.tau_ = tau
         self.method_, kwargs = self._solver_arguments(W.shape[0])
         result = minimize_regularized(
