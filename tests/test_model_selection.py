@@ -131,6 +131,29 @@ def test_a_tau_path_is_the_hand_chain_of_last_stage_solves_and_widths_chain_from
     np.testing.assert_array_equal(search.best_estimator_.x_, refit)
 
 
+def test_the_regularizer_imputer_s_fold_errors_are_the_hand_computed_ones_and_the_refit_is_its_solve():
+    from nldr.impute import KernelRegularizerImputer
+
+    _, W, mask = denoising_problem(n=25, d=5)
+    W = np.where(mask, W, np.nan)
+    gamma, taus = median_gamma(W), [0.1, 1.0]
+    ours = KernelRegularizerImputer(standardize=False, gamma=gamma, method="exact")
+    loose = {"options": {"tol": 1e-7, "gtol": 1e-4}}
+    search = HoldoutSearch(ours, {"tau": taus}, n_folds=2, fold_params={"options": loose}).fit(W)
+    folds = holdout_folds(mask, 2, random_state=0)
+    for k, tau in enumerate(taus):
+        errors = []
+        for h in folds:
+            train = mask & ~h
+            start = mean_impute(np.where(train, W, np.nan), train)
+            x = solve(W, train, start, gamma, tau, tol=1e-7, gtol=1e-4)
+            errors.append(np.mean((x - W)[h] ** 2))
+        assert search.cv_results_["mean_test_error"][k] == pytest.approx(np.mean(errors), rel=1e-12)
+        assert search.cv_results_["std_test_error"][k] == pytest.approx(np.std(errors, ddof=1), rel=1e-9)
+    refit = solve(W, mask, mean_impute(W, mask), gamma, search.best_params_["tau"])
+    np.testing.assert_array_equal(search.transform(W), refit)
+
+
 def test_early_stop_leaves_the_solved_scores_unchanged_and_skips_only_the_end_of_a_path():
     _, W, mask = denoising_problem(n=25, d=5)
     W = np.where(mask, W, np.nan)

@@ -196,5 +196,15 @@ def test_peer_grids_and_selection_with_and_without_a_knob():
     assert search.fit(W).best_params_ == {} and len(search.cv_results_["params"]) == 1
     np.testing.assert_array_equal(search.transform(W), iterative_imputer().fit_transform(W))
     assert baseline_grid("missForest", W)[1] == {"estimator__max_features": [1 / 3, 1.0]}
+    estimator, grid = baseline_grid("SoftImpute", W)
+    # the largest lam is 0.3 of the value at which the completion is mean imputation
+    mu = np.array([W[mask[:, j], j].mean() for j in range(W.shape[1])])
+    top = np.linalg.svd(np.where(mask, W, mu) - mu, compute_uv=False)[0]
+    assert max(grid["lam"]) == pytest.approx(0.3 * top, rel=1e-12)
+    search = HoldoutSearch(estimator, grid, n_folds=3).fit(W)
+    assert search.best_params_["lam"] in grid["lam"]
+    np.testing.assert_array_equal(
+        search.transform(W), soft_impute(W, mask, lam=search.best_params_["lam"]).x
+    )
     with pytest.raises(ValueError, match="method"):
         baseline_grid("PCA", W)
