@@ -64,7 +64,6 @@ __all__ = [
     "complete_rows",
     "completion_objective",
     "nearest_rows",
-    "neighbour_start",
     "average_solutions",
     "LOSSES",
 ]
@@ -224,32 +223,6 @@ def nearest_rows(
     dist = np.take_along_axis(D, nearest, axis=1)
     order = np.argsort(dist, axis=1, kind="stable")
     return np.take_along_axis(nearest, order, axis=1), np.take_along_axis(dist, order, axis=1)
-
-
-def neighbour_start(
-    X_fit: np.ndarray,
-    W: np.ndarray,
-    mask: np.ndarray,
-    n_neighbors: int = 5,
-    each: bool = False,
-    *,
-    loss: str = "squared",
-    delta: float | None = None,
-) -> np.ndarray:
-    """Starts for the missing entries from the nearest training rows on the observed entries.
-
-    The neighbours are those of :func:`nearest_rows`. With ``each`` False, one start per row, at the
-    mean of its ``n_neighbors`` nearest training rows (shape (m, d)); with ``each`` True, one start per
-    neighbour, nearest first (shape (m, n_neighbors, d)). A row with nothing observed starts at the
-    training mean. Observed entries keep their values. Shapes: X_fit (n, d), W and mask (m, d).
-    """
-    Wz = np.where(mask, W, 0.0)
-    nearest, _ = nearest_rows(X_fit, W, mask, n_neighbors, loss=loss, delta=delta)
-    starts = X_fit[nearest]  # (m, k, d)
-    starts[~mask.any(axis=1)] = X_fit.mean(axis=0)
-    if not each:
-        return np.where(mask, W, starts.mean(axis=1))
-    return np.where(mask[:, None, :], Wz[:, None, :], starts)
 
 
 def average_solutions(X: np.ndarray, distance: np.ndarray, weights: str = "uniform") -> np.ndarray:
