@@ -63,6 +63,7 @@ __all__ = [
     "preimage",
     "complete_rows",
     "completion_objective",
+    "complete_from_starts",
     "nearest_rows",
     "average_solutions",
     "LOSSES",
@@ -297,6 +298,33 @@ def complete_rows(
         return completion_objective(space, Wz[rows], mask[rows], Y, rho=rho, loss=loss, delta=delta)
 
     return _lbfgs_rows(fun_grad, X0, np.ones(W.shape, dtype=bool), max_iter, gtol)
+
+
+def complete_from_starts(
+    space: Subspace,
+    W: np.ndarray,
+    mask: np.ndarray,
+    X0: np.ndarray,
+    *,
+    rho: float | None = None,
+    loss: str = "squared",
+    delta: float | None = None,
+    max_iter: int = 500,
+) -> np.ndarray:
+    """:func:`complete_rows` for every row of W (m, d) from each of its k starts X0 (m, k, d);
+    returns the k local minima per row, shape (m, k, d)."""
+    m, k, d = X0.shape
+    X_hat, _ = complete_rows(
+        space,
+        np.repeat(W, k, axis=0),
+        np.repeat(mask, k, axis=0),
+        X0.reshape(m * k, d),
+        rho=rho,
+        loss=loss,
+        delta=delta,
+        max_iter=max_iter,
+    )
+    return X_hat.reshape(m, k, d)
 
 
 def completion_objective(

@@ -29,7 +29,7 @@ from ._validation import (
     check_symmetric_kernel,
 )
 from .kernels import center_cross_kernel, center_kernel, rbf_kernel
-from .preimage import LOSSES, Subspace, average_solutions, complete_rows, nearest_rows, preimage
+from .preimage import LOSSES, Subspace, average_solutions, complete_from_starts, nearest_rows, preimage
 
 __all__ = [
     "EIGENSOLVERS",
@@ -364,19 +364,11 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         """Solve every row of X (m, d) from each of its k starts built on ``rows`` (m, k, d) ->
         solutions (m, k, d)."""
         X0 = self._starts(X, mask, rows, rho, loss)
-        (m, k, d) = X0.shape
+        max_iter = check_count(max_iter, "max_iter")
         with blas_threads_for(self.X_fit_.shape[0]):
-            X_hat, _ = complete_rows(
-                self._subspace(),
-                np.repeat(X, k, axis=0),
-                np.repeat(mask, k, axis=0),
-                X0.reshape(m * k, d),
-                rho=rho,
-                loss=loss,
-                delta=delta,
-                max_iter=check_count(max_iter, "max_iter"),
+            return complete_from_starts(
+                self._subspace(), X, mask, X0, rho=rho, loss=loss, delta=delta, max_iter=max_iter
             )
-        return X_hat.reshape(m, k, d)
 
     def _starts(self, X, mask, rows, rho, loss):
         """Starts (m, k, d) from neighbour rows (m, k, d): the observed entries at X (squared loss or

@@ -10,7 +10,7 @@ from .._validation import check_count, check_positive
 from ..baselines._masked import mean_fill, observed_column_means
 from ..data_terms import MaskedLeastSquares
 from ..kernels import center_kernel, rbf_kernel, squared_distances
-from ..preimage import Subspace, average_solutions, complete_rows, nearest_rows
+from ..preimage import Subspace, average_solutions, complete_from_starts, nearest_rows
 from ..regularizer import minimize_regularized
 from ._base import MaskedImputerBase
 
@@ -269,15 +269,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         if self.starts == "mean":
             rows = rows.mean(axis=1, keepdims=True)
         X0 = np.where(mask[:, None, :], Z[:, None, :], rows)
-        m, k, d = X0.shape
         with blas_threads_for(S.shape[0]):
-            X_hat, _ = complete_rows(
-                self._subspace(),
-                np.repeat(Z, k, axis=0),
-                np.repeat(mask, k, axis=0),
-                X0.reshape(m * k, d),
-                rho=None,
-            )
-        X_hat = X_hat.reshape(m, k, d)
+            X_hat = complete_from_starts(self._subspace(), Z, mask, X0)
         X_hat = X_hat[:, 0] if self.starts == "mean" else average_solutions(X_hat, distance, self.weights)
         return np.where(mask, W, X_hat * self.scale_ + self.mean_)
