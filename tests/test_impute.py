@@ -179,6 +179,8 @@ def test_bad_input_is_refused_with_a_clear_message(X, match):
         ({"weights": "inverse"}, "weights"),
         ({"n_neighbors": 0}, "n_neighbors"),
         ({"options": [1]}, "options"),
+        ({"method": "exact", "options": {"landmarks": 10}}, "method 'exact' takes no option 'landmarks'"),
+        ({"schedule": {"rho": 1.0}}, "schedule"),
         ({"missing_values": "x"}, "missing_values"),
     ],
 )

@@ -72,7 +72,7 @@ def test_complete_of_a_training_row_reaches_a_stationary_point_and_the_row_where
     # r >= 0 and r = 0 at the training row (an isolated zero): a global minimiser of the hard problem.
     # The problem is not convex, so from the neighbours' mean the solver is only guaranteed a stationary
     # point no worse than the start; where it reaches r = 0 it must have found the row itself.
-    from nldr.preimage import neighbour_start
+    from nldr.preimage import nearest_rows
 
     X = data()
     model = full_rank(X)
@@ -82,7 +82,8 @@ def test_complete_of_a_training_row_reaches_a_stationary_point_and_the_row_where
     X_hat = model.complete(W, mask, n_neighbors=2)
     space = model._subspace()
     r, g = subspace_distance(space, X_hat)
-    r0, _ = subspace_distance(space, neighbour_start(X, W, mask, 2))
+    nearest, _ = nearest_rows(X, np.where(mask, W, 0.0), mask, 2)
+    r0, _ = subspace_distance(space, np.where(mask, W, X[nearest].mean(axis=1)))  # complete's start
     np.testing.assert_array_equal(X_hat[mask], X[mask])
     assert np.all(r <= r0 + 1e-12)
     assert np.abs(g[~mask]).max() < 1e-5

@@ -11,7 +11,6 @@ from nldr.robust_kpca import (
     RobustKernelPCA,
     closed_form_rank_penalty,
     rank_penalty_energy,
-    rank_penalty_spectrum,
     rank_penalty_threshold,
     shrink_eigenvalues,
 )
@@ -82,13 +81,17 @@ def test_closed_form_beats_numerical_minimisation_from_random_starts(seed, n, ta
 
 def test_spectrum_energy_and_matrix_energy_agree(rng):
     K = random_psd(rng, 12, 4)
-    sp = rank_penalty_spectrum(K, 0.5, 2.0)
-    assert sp.energy == pytest.approx(rank_penalty_energy(K, sp.C, 0.5, 2.0), rel=1e-10)
-    np.testing.assert_allclose(sp.C.T @ sp.C, sp.low_rank_kernel, atol=1e-12)
+    tau, rho = 0.5, 2.0
+    lam, U = np.linalg.eigh(K)
+    lam, U = lam[::-1], U[:, ::-1]
+    l = shrink_eigenvalues(lam, tau, rho)
+    C = closed_form_rank_penalty(K, tau, rho, eigensolver="full")
+    spectral = rho / 2.0 * np.sum((lam - l**2) ** 2) + tau * np.sum(l)
+    assert spectral == pytest.approx(rank_penalty_energy(K, C, tau, rho), rel=1e-10)
+    np.testing.assert_allclose(C.T @ C, (U * l**2) @ U.T, atol=1e-12)
     # stationarity of each kept singular value: l^3 - lambda l + tau / (2 rho) = 0
-    kept = sp.singular_values > 0
-    l, lam = sp.singular_values[kept], sp.eigenvalues[kept]
-    np.testing.assert_allclose(l**3 - lam * l + 0.5 / 4.0, 0, atol=1e-10)
+    kept = l > 0
+    np.testing.assert_allclose(l[kept] ** 3 - lam[kept] * l[kept] + tau / (2 * rho), 0, atol=1e-10)
 
 
 def test_only_ratio_tau_over_rho_changes_the_minimiser(rng):

@@ -63,8 +63,8 @@ __all__ = [
     "preimage",
     "complete_rows",
     "completion_objective",
+    "complete_from_starts",
     "nearest_rows",
-    "neighbour_start",
     "average_solutions",
     "LOSSES",
 ]
@@ -226,32 +226,6 @@ def nearest_rows(
     return np.take_along_axis(nearest, order, axis=1), np.take_along_axis(dist, order, axis=1)
 
 
-def neighbour_start(
-    X_fit: np.ndarray,
-    W: np.ndarray,
-    mask: np.ndarray,
-    n_neighbors: int = 5,
-    each: bool = False,
-    *,
-    loss: str = "squared",
-    delta: float | None = None,
-) -> np.ndarray:
-    """Starts for the missing entries from the nearest training rows on the observed entries.
-
-    The neighbours are those of :func:`nearest_rows`. With ``each`` False, one start per row, at the
-    mean of its ``n_neighbors`` nearest training rows (shape (m, d)); with ``each`` True, one start per
-    neighbour, nearest first (shape (m, n_neighbors, d)). A row with nothing observed starts at the
-    training mean. Observed entries keep their values. Shapes: X_fit (n, d), W and mask (m, d).
-    """
-    Wz = np.where(mask, W, 0.0)
-    nearest, _ = nearest_rows(X_fit, W, mask, n_neighbors, loss=loss, delta=delta)
-    starts = X_fit[nearest]  # (m, k, d)
-    starts[~mask.any(axis=1)] = X_fit.mean(axis=0)
-    if not each:
-        return np.where(mask, W, starts.mean(axis=1))
-    return np.where(mask[:, None, :], Wz[:, None, :], starts)
-
-
 def average_solutions(X: np.ndarray, distance: np.ndarray, weights: str = "uniform") -> np.ndarray:
     """Combine per-neighbour solutions (m, k, d) into one row each (m, d).
 
@@ -324,6 +298,33 @@ def complete_rows(
         return completion_objective(space, Wz[rows], mask[rows], Y, rho=rho, loss=loss, delta=delta)
 
     return _lbfgs_rows(fun_grad, X0, np.ones(W.shape, dtype=bool), max_iter, gtol)
+
+
+def complete_from_starts(
+    space: Subspace,
+    W: np.ndarray,
+    mask: np.ndarray,
+    X0: np.ndarray,
+    *,
+    rho: float | None = None,
+    loss: str = "squared",
+    delta: float | None = None,
+    max_iter: int = 500,
+) -> np.ndarray:
+    """:func:`complete_rows` for every row of W (m, d) from each of its k starts X0 (m, k, d);
+    returns the k local minima per row, shape (m, k, d)."""
+    m, k, d = X0.shape
+    X_hat, _ = complete_rows(
+        space,
+        np.repeat(W, k, axis=0),
+        np.repeat(mask, k, axis=0),
+        X0.reshape(m * k, d),
+        rho=rho,
+        loss=loss,
+        delta=delta,
+        max_iter=max_iter,
+    )
+    return X_hat.reshape(m, k, d)
 
 
 def completion_objective(

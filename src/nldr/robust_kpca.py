@@ -14,7 +14,6 @@ inner functions this module shares with :mod:`nldr.regularizer`.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
@@ -30,14 +29,12 @@ from ._validation import (
     check_symmetric_kernel,
 )
 from .kernels import center_cross_kernel, center_kernel, rbf_kernel
-from .preimage import LOSSES, Subspace, average_solutions, complete_rows, nearest_rows, preimage
+from .preimage import LOSSES, Subspace, average_solutions, complete_from_starts, nearest_rows, preimage
 
 __all__ = [
     "EIGENSOLVERS",
     "rank_penalty_threshold",
     "shrink_eigenvalues",
-    "RankPenaltySpectrum",
-    "rank_penalty_spectrum",
     "closed_form_rank_penalty",
     "rank_penalty_energy",
     "RobustKernelPCA",
@@ -68,57 +65,6 @@ def shrink_eigenvalues(lam, tau: float, rho: float) -> np.ndarray:
     if not np.all(np.isfinite(lam)):
         raise ValueError("lam contains NaN or infinite values")
     return shrink(lam, check_positive(tau, "tau"), check_positive(rho, "rho"))
-
-
-@dataclass(frozen=True)
-class RankPenaltySpectrum:
-    """Spectral form of the closed-form solution, eigenvalues sorted in decreasing order.
-
-    Attributes
-    ----------
-    eigenvalues : (n,) eigenvalues lambda of K
-    singular_values : (n,) singular values l of C (zero below the threshold)
-    eigenvectors : (n, n) orthonormal eigenvectors U of K, one per column
-    tau, rho : the parameters used
-    """
-
-    eigenvalues: np.ndarray
-    singular_values: np.ndarray
-    eigenvectors: np.ndarray
-    tau: float
-    rho: float
-
-    @property
-    def rank(self) -> int:
-        """Number of non-zero singular values of C (the dimension of the recovered manifold)."""
-        return int(np.count_nonzero(self.singular_values))
-
-    @property
-    def C(self) -> np.ndarray:
-        """The minimiser C = diag(l) U^T, shape (n, n)."""
-        return self.singular_values[:, None] * self.eigenvectors.T
-
-    @property
-    def low_rank_kernel(self) -> np.ndarray:
-        """C^T C = U diag(l^2) U^T, shape (n, n)."""
-        U = self.eigenvectors
-        return (U * self.singular_values**2) @ U.T
-
-    @property
-    def energy(self) -> float:
-        """tau ||C||_* + rho/2 ||K - C^T C||_F^2, evaluated from the spectrum."""
-        lam, l = self.eigenvalues, self.singular_values
-        return float(self.rho / 2.0 * np.sum((lam - l**2) ** 2) + self.tau * np.sum(l))
-
-
-def rank_penalty_spectrum(K, tau: float, rho: float) -> RankPenaltySpectrum:
-    """Closed-form robust KPCA in spectral form; see :func:`closed_form_rank_penalty`."""
-    K = check_symmetric_kernel(K, "K")
-    tau = check_positive(tau, "tau")
-    rho = check_positive(rho, "rho")
-    lam, U = np.linalg.eigh(K)
-    lam, U = lam[::-1], U[:, ::-1]
-    return RankPenaltySpectrum(lam, shrink(lam, tau, rho), U, tau, rho)
 
 
 def closed_form_rank_penalty(K, tau: float, rho: float, *, eigensolver: str = "auto") -> np.ndarray:
@@ -418,19 +364,11 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         """Solve every row of X (m, d) from each of its k starts built on ``rows`` (m, k, d) ->
         solutions (m, k, d)."""
         X0 = self._starts(X, mask, rows, rho, loss)
-        (m, k, d) = X0.shape
+        max_iter = check_count(max_iter, "max_iter")
         with blas_threads_for(self.X_fit_.shape[0]):
-            X_hat, _ = complete_rows(
-                self._subspace(),
-                np.repeat(X, k, axis=0),
-                np.repeat(mask, k, axis=0),
-                X0.reshape(m * k, d),
-                rho=rho,
-                loss=loss,
-                delta=delta,
-                max_iter=check_count(max_iter, "max_iter"),
+            return complete_from_starts(
+                self._subspace(), X, mask, X0, rho=rho, loss=loss, delta=delta, max_iter=max_iter
             )
-        return X_hat.reshape(m, k, d)
 
     def _starts(self, X, mask, rows, rho, loss):
         """Starts (m, k, d) from neighbour rows (m, k, d): the observed entries at X (squared loss or

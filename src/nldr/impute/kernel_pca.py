@@ -15,7 +15,7 @@ from .._validation import check_positive
 from ..baselines import pkpca_impute, rkpca_impute
 from ..baselines._masked import mean_fill
 from ..kernels import center_kernel, rbf_kernel, squared_distances
-from ..preimage import Subspace, complete_rows, nearest_rows
+from ..preimage import Subspace, complete_from_starts, nearest_rows
 from ._base import MaskedImputerBase
 
 __all__ = ["PKPCAImputer", "RKPCAImputer"]
@@ -50,16 +50,26 @@ def _complete_on(space: Subspace, W: np.ndarray, mask: np.ndarray) -> np.ndarray
     start[~mask.any(axis=1)] = space.X_fit.mean(axis=0)
     X0 = np.where(mask, W, start)
     with blas_threads_for(space.X_fit.shape[0]):
-        X_hat, _ = complete_rows(space, W, mask, X0, rho=None)
+        X_hat = complete_from_starts(space, W, mask, X0[:, None, :])[:, 0]
     return np.where(mask, W, X_hat)
 
 
 class _KernelBaseline(MaskedImputerBase):
     _min_samples = 3
     _option_names = ("max_iter", "inner_max_iter", "gtol")
+    #: the solver function and whether its subspace is centred
+    _solver = None
+    _centred = False
 
-    def _gamma(self, W, mask) -> float:
-        return _median_gamma(W, mask) if self.gamma is None else check_positive(self.gamma, "gamma")
+    def _solve(self, W, mask):
+        self.gamma_ = _median_gamma(W, mask) if self.gamma is None else check_positive(self.gamma, "gamma")
+        result = type(self)._solver(
+            np.where(mask, W, np.nan), mask, self.gamma_, **self._knobs(), **self._options()
+        )
+        self.n_components_ = int(result.n_components)
+        rows = getattr(result, "Y", result.x)  # RKPCA's energy minimiser (x keeps the observed entries)
+        self.subspace_ = _subspace(rows, self.gamma_, self.n_components_, centred=self._centred)
+        return result.x, result
 
     def _complete(self, W, mask):
         return _complete_on(self.subspace_, W, mask)
@@ -117,20 +127,14 @@ class PKPCAImputer(_KernelBaseline):
         self.extra_components = extra_components
         self.options = options
 
-    def _solve(self, W, mask):
-        self.gamma_ = self._gamma(W, mask)
-        result = pkpca_impute(
-            np.where(mask, W, np.nan),
-            mask,
-            self.gamma_,
-            n_components=self.n_components,
-            variance_fraction=self.variance_fraction,
-            extra_components=self.extra_components,
-            **self._options(),
-        )
-        self.n_components_ = int(result.n_components)
-        self.subspace_ = _subspace(result.x, self.gamma_, self.n_components_, centred=False)
-        return result.x, result
+    _solver = staticmethod(pkpca_impute)
+
+    def _knobs(self):
+        return {
+            "n_components": self.n_components,
+            "variance_fraction": self.variance_fraction,
+            "extra_components": self.extra_components,
+        }
 
 
 class RKPCAImputer(_KernelBaseline):
@@ -181,16 +185,8 @@ class RKPCAImputer(_KernelBaseline):
         self.weight = weight
         self.options = options
 
-    def _solve(self, W, mask):
-        self.gamma_ = self._gamma(W, mask)
-        result = rkpca_impute(
-            np.where(mask, W, np.nan),
-            mask,
-            self.gamma_,
-            n_components=self.n_components,
-            weight=self.weight,
-            **self._options(),
-        )
-        self.n_components_ = int(result.n_components)
-        self.subspace_ = _subspace(result.Y, self.gamma_, self.n_components_, centred=True)
-        return result.x, result
+    _solver = staticmethod(rkpca_impute)
+    _centred = True
+
+    def _knobs(self):
+        return {"n_components": self.n_components, "weight": self.weight}

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import inspect
-
 import numpy as np
 from sklearn.utils import check_random_state
 
@@ -12,22 +10,22 @@ from .._validation import check_count, check_positive
 from ..baselines._masked import mean_fill, observed_column_means
 from ..data_terms import MaskedLeastSquares
 from ..kernels import center_kernel, rbf_kernel, squared_distances
-from ..preimage import Subspace, average_solutions, complete_rows, nearest_rows
+from ..preimage import Subspace, average_solutions, complete_from_starts, nearest_rows
 from ..regularizer import minimize_regularized
 from ._base import MaskedImputerBase
 
 __all__ = ["KernelRegularizerImputer", "AUTO_EXACT_MAX_ROWS", "MEDIAN_RULE_MULTIPLE", "METHODS"]
 
-#: solver paths of ``method``
-METHODS = ("auto", "exact", "nystroem-warm")
+#: solver paths of ``method``: "auto" and minimize_regularized's methods
+METHODS = ("auto", "exact", "nystroem", "nystroem-warm")
+#: keys of ``schedule``: minimize_regularized's penalty schedule
+SCHEDULE_KEYS = ("rho0", "rho_growth", "rho_max")
 #: ``method="auto"`` solves exactly up to this many rows and warm-starts from the Nystroem kernel above
 #: (docs/PERFORMANCE.md, "The imputer's solver path").
-AUTO_EXACT_MAX_ROWS = 300
+AUTO_EXACT_MAX_ROWS = 150
 #: the default width is this multiple of 1 / (median squared distance between rows), standardised units
 #: (docs/REPRODUCTION.md, "The imputer's defaults")
 MEDIAN_RULE_MULTIPLE = 0.25
-#: landmarks of the Nystroem warm start
-WARM_LANDMARKS = 100
 
 
 def _median_rule_gamma(S: np.ndarray) -> float:
@@ -45,10 +43,6 @@ def _median_rule_gamma(S: np.ndarray) -> float:
             "the rows of X (after mean imputation) coincide: the median rule cannot set gamma; pass gamma"
         )
     return MEDIAN_RULE_MULTIPLE / med
-
-
-#: minimize_regularized's keyword arguments that the estimator sets itself
-_SET_HERE = ("data_term", "S0", "gamma", "tau", "center")
 
 
 class KernelRegularizerImputer(MaskedImputerBase):
@@ -95,15 +89,23 @@ class KernelRegularizerImputer(MaskedImputerBase):
         solves on X as given, the paper's setting.
     center : bool, default False
         Double-centre the kernel (the paper's Table 2 does not).
-    method : {"auto", "exact", "nystroem-warm"}, default "auto"
-        "exact": every penalty stage with the exact kernel. "nystroem-warm": the stages before the
-        last on a Nystroem kernel of 100 landmark rows, then the last stage exactly from there (an
-        exact stopping test, possibly another local minimum: docs/PERFORMANCE.md). "auto": "exact"
-        up to :data:`AUTO_EXACT_MAX_ROWS` rows, "nystroem-warm" above.
+    method : {"auto", "exact", "nystroem", "nystroem-warm"}, default "auto"
+        :func:`~nldr.regularizer.minimize_regularized`'s solver path. "exact": every penalty stage
+        with the exact kernel. "nystroem-warm": the stages before the last on a Nystroem kernel of
+        100 landmark rows, then the last stage exactly from there (an exact stopping test, possibly
+        another local minimum: docs/PERFORMANCE.md). "nystroem": every stage on the Nystroem kernel
+        (not the exact minimiser). "auto": "exact" up to :data:`AUTO_EXACT_MAX_ROWS` rows,
+        "nystroem-warm" above.
     options : dict or None, default None
-        Further keyword arguments of :func:`~nldr.regularizer.minimize_regularized` (the penalty
-        schedule ``rho0``, ``rho_growth``, ``rho_max``, tolerances, ``eigensolver``, ``verbose``,
-        ``callback``).
+        The method's options, as :func:`~nldr.regularizer.minimize_regularized` takes them
+        (tolerances, ``max_inner``, ``eigensolver``, ``landmarks``, ...); an option the method does
+        not take is a ValueError naming the method. The Nystroem methods' ``landmark_seed`` defaults
+        to a draw from ``random_state``.
+    schedule : dict or None, default None
+        The penalty schedule: ``rho0``, ``rho_growth``, ``rho_max`` of
+        :func:`~nldr.regularizer.minimize_regularized` (None: its defaults 1, 10, 1e4, the paper's).
+    verbose : bool, default False
+        Print one line per penalty stage.
     n_neighbors : int >= 1, default 5
         ``transform``: the training rows nearest to a new row on its observed entries, which give
         its starts.
@@ -159,6 +161,8 @@ class KernelRegularizerImputer(MaskedImputerBase):
         center=False,
         method="auto",
         options=None,
+        schedule=None,
+        verbose=False,
         n_neighbors=5,
         starts="mean",
         weights="uniform",
@@ -171,13 +175,14 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self.center = center
         self.method = method
         self.options = options
+        self.schedule = schedule
+        self.verbose = verbose
         self.n_neighbors = n_neighbors
         self.starts = starts
         self.weights = weights
         self.random_state = random_state
 
     _min_samples = 2
-    _option_names = tuple(p for p in inspect.signature(minimize_regularized).parameters if p not in _SET_HERE)
 
     def _check_params(self):
         if self.method not in METHODS:
@@ -201,15 +206,23 @@ class KernelRegularizerImputer(MaskedImputerBase):
         return mean, np.where(sd > 0, sd, 1.0)
 
     def _solver_arguments(self, n: int) -> tuple[str, dict]:
-        """The solver path and its keyword arguments of minimize_regularized."""
+        """The solver path and minimize_regularized's keyword arguments (options checked there)."""
         method = self.method
         if method == "auto":
             method = "exact" if n <= AUTO_EXACT_MAX_ROWS else "nystroem-warm"
-        kwargs = self._options()
-        if method == "nystroem-warm":
-            seed = int(check_random_state(self.random_state).randint(np.iinfo(np.int32).max))
-            kwargs = {"warm_start": "nystroem", "landmarks": WARM_LANDMARKS, "landmark_seed": seed} | kwargs
-        return method, kwargs
+        if self.options is not None and not isinstance(self.options, dict):
+            raise ValueError(f"options must be a dict of the method's options or None; got {self.options!r}")
+        schedule = {} if self.schedule is None else self.schedule
+        if not isinstance(schedule, dict) or set(schedule) - set(SCHEDULE_KEYS):
+            raise ValueError(
+                f"schedule must be a dict with keys among {SCHEDULE_KEYS} or None; got {schedule!r}"
+            )
+        options = dict(self.options or {})
+        if method != "exact" and "landmark_seed" not in options:
+            options["landmark_seed"] = int(
+                check_random_state(self.random_state).randint(np.iinfo(np.int32).max)
+            )
+        return method, {"method": method, "options": options, "verbose": bool(self.verbose), **schedule}
 
     def _solve(self, W, mask):
         gamma, tau = self._check_params()
@@ -256,15 +269,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         if self.starts == "mean":
             rows = rows.mean(axis=1, keepdims=True)
         X0 = np.where(mask[:, None, :], Z[:, None, :], rows)
-        m, k, d = X0.shape
         with blas_threads_for(S.shape[0]):
-            X_hat, _ = complete_rows(
-                self._subspace(),
-                np.repeat(Z, k, axis=0),
-                np.repeat(mask, k, axis=0),
-                X0.reshape(m * k, d),
-                rho=None,
-            )
-        X_hat = X_hat.reshape(m, k, d)
+            X_hat = complete_from_starts(self._subspace(), Z, mask, X0)
         X_hat = X_hat[:, 0] if self.starts == "mean" else average_solutions(X_hat, distance, self.weights)
         return np.where(mask, W, X_hat * self.scale_ + self.mean_)
