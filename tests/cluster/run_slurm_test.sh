@@ -74,12 +74,13 @@ for _ in $(seq 50); do [ -S "$WORK/munge.socket" ] && break; sleep 0.1; done
 munge -n -S "$WORK/munge.socket" | unmunge -S "$WORK/munge.socket" >/dev/null \
     || fail "munged did not start: $(tail -3 "$WORK/munged.out")"
 
-# slurm.conf: this host as the one node, with the CPUs and memory slurmd detects
+# slurm.conf: this host as the one node, with the CPUs and memory slurmd detects, reached over
+# loopback (no name lookup needed)
 NODE="$(slurmd -C | grep '^NodeName=')" || fail "slurmd -C could not describe this host"
 mkdir -p "$WORK/state" "$WORK/spool"
 cat >"$CONF" <<CONFEOF
 ClusterName=nldrtest
-SlurmctldHost=$(hostname -s)
+SlurmctldHost=$(hostname -s)(127.0.0.1)
 AuthType=auth/munge
 CredType=cred/munge
 AuthInfo=socket=$WORK/munge.socket
@@ -101,7 +102,7 @@ SelectTypeParameters=CR_Core_Memory
 ReturnToService=2
 # finished jobs stay visible to squeue and scontrol this long (s): above the plugin's threshold and the run
 MinJobAge=900
-$NODE State=UNKNOWN
+$NODE NodeAddr=127.0.0.1 State=UNKNOWN
 PartitionName=debug Nodes=ALL Default=YES MaxTime=INFINITE State=UP
 CONFEOF
 
