@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 CORES ?= all
 
-.PHONY: setup reproduce quick scale future test mutants lint dryrun bench docs clean
+.PHONY: setup reproduce quick scale future test cluster-test mutants lint dryrun bench docs clean
 
 $(BIN)/.installed: pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -30,6 +30,9 @@ future: setup  ## the paper's future work, not in the paper: robust data term, n
 
 test: setup  ## the whole test suite (pipeline tests use config/quick.yaml)
 	$(BIN)/python -m pytest
+
+cluster-test: setup  ## (root) table1 and table3 on a one-node SLURM started here, byte-compared with a local run
+	NLDR_PYTHON=$(BIN)/python bash tests/cluster/run_slurm_test.sh
 
 mutants: setup  ## put known faults into a scratch copy one at a time; report which the tests catch
 	$(BIN)/python tests/mutants.py

@@ -5,19 +5,22 @@ import subprocess
 import sys
 
 import pytest
+import yaml
 from protocol import QUICK, REPO, SNAKEMAKE
 
 SCRIPTS = REPO / "workflow" / "scripts"
 
 
 @pytest.mark.pipeline
-def test_slurm_profile_requests_each_jobs_threads(tmp_path):
+@pytest.mark.parametrize("profile", ["slurm", "slurm-noacct"])
+def test_slurm_profile_requests_each_jobs_threads(tmp_path, profile):
     """The full-length drink job runs BLAS on 2 threads; SLURM must be asked for 2 CPUs for it (a
-    profile-wide cpus_per_task used to override threads), and 1 for the others."""
+    profile-wide cpus_per_task used to override threads), and 1 for the others. The real submission
+    runs in tests/cluster/run_slurm_test.sh (`make cluster-test`)."""
     overlay = tmp_path / "drink.yaml"
     overlay.write_text("table3:\n  sequences: [drink, yoga]\ntable3_full:\n  n_seeds: 1\n")
     proc = subprocess.run(
-        [*SNAKEMAKE, "-d", str(tmp_path), "--profile", str(REPO / "profiles/slurm"), "-n",
+        [*SNAKEMAKE, "-d", str(tmp_path), "--profile", str(REPO / "profiles" / profile), "-n",
          "results/quick/tables/table3_full.csv", "--configfile", str(QUICK), str(overlay)],
         cwd=REPO, capture_output=True, text=True,
     )  # fmt: skip
@@ -32,6 +35,20 @@ def test_slurm_profile_requests_each_jobs_threads(tmp_path):
         requested[job] = (int(threads.group(1)) if threads else 1, int(cpus.group(1)))
     assert requested and all(t == c for t, c in requested.values()), requested
     assert requested["table3_full/drink_full_seed2016"] == (2, 2)
+
+
+def test_the_no_accounting_profile_is_the_slurm_profile_plus_its_three_settings():
+    """profiles/slurm-noacct must not drift from profiles/slurm: the same keys and values, plus the
+    squeue status check, a short first check that squeue can still see through SLURM's default
+    MinJobAge (300 s; the plugin falls back to sacct below 3 x that delay), and no account."""
+    slurm = yaml.safe_load((REPO / "profiles/slurm/config.yaml").read_text())
+    noacct = yaml.safe_load((REPO / "profiles/slurm-noacct/config.yaml").read_text())
+    extra = {k: noacct.pop(k) for k in list(noacct) if k not in slurm}
+    assert noacct == slurm
+    assert extra.pop("slurm-status-command") == "squeue"
+    assert 3 * extra.pop("slurm-init-seconds-before-status-checks") < 300
+    assert not extra, extra
+    assert "slurm_account" not in noacct["default-resources"]
 
 
 def test_job_scripts_import_the_checkouts_src_when_nldr_is_not_installed():

@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 import yaml
 from protocol import QUICK, REPO, full_config, quick_config, quick_results, run_snakemake
+from reproducible import difference
 
 from nldr.experiments import EXPERIMENTS
 from nldr.experiments.table2 import PEER_ROWS
@@ -127,17 +128,24 @@ def test_table3_target_has_tnh_and_both_widths_beside_the_paper(quick_run):
 
 
 @pytest.mark.pipeline
-def test_a_second_clean_run_on_one_core_gives_byte_identical_tables(quick_run, tmp_path):
-    """Every random draw is seeded and BLAS is pinned per job, so the tables may not depend on the run
-    or on how many jobs ran side by side (the first run used 2 cores, this one uses 1)."""
+def test_a_second_clean_run_on_one_core_gives_byte_identical_outputs(quick_run, tmp_path):
+    """Every random draw is seeded and BLAS is pinned per job, so the tables, run files and figures (PNG,
+    PDF and SVG) may not depend on the run or on how many jobs ran side by side (the first run used 2
+    cores, this one uses 1). Run files may differ only in the cells that time their job."""
     targets = [f"{R}/tables/{name}.csv" for name in ("table1", "table2", "table3", "table4")]
+    targets += [f"{R}/figures/{name}.{ext}" for name in ("fig3", "fig1") for ext in ("png", "pdf", "svg")]
     proc = run_snakemake(tmp_path, *targets, "-c", "1", "--configfile", str(QUICK))
     assert proc.returncode == 0, proc.stderr[-4000:]
     tables = sorted((quick_run / R / "tables").glob("table*.*"))
     assert len(tables) == 16  # four tables, each as csv, md, html and tex
-    for first in tables:
-        second = tmp_path / R / "tables" / first.name
-        if second.read_bytes() != first.read_bytes():
+    figures = sorted((quick_run / R / "figures").glob("fig*.*"))
+    assert {f.name for f in figures} == {f"{n}.{e}" for n in ("fig3", "fig1") for e in ("png", "pdf", "svg")}
+    runs = sorted(p for p in (quick_run / R / "runs").rglob("*") if p.is_file())
+    second_runs = sorted(p for p in (tmp_path / R / "runs").rglob("*") if p.is_file())
+    assert [p.relative_to(quick_run) for p in runs] == [p.relative_to(tmp_path) for p in second_runs]
+    for first in [*tables, *figures, *runs]:
+        second = tmp_path / first.relative_to(quick_run)
+        if (why := difference(first, second)) is not None:
             # name the BLAS kernels and CPU features each run's jobs used (see _pipeline.compute_fingerprint)
             seen = {
                 f"{root.name}/{log.relative_to(root)}": line.split("compute:", 1)[1].strip()
@@ -146,9 +154,8 @@ def test_a_second_clean_run_on_one_core_gives_byte_identical_tables(quick_run, t
                 for line in log.read_text().splitlines()
                 if "compute:" in line
             }
-            lines = zip(first.read_text().splitlines(), second.read_text().splitlines(), strict=False)
-            diff = [pair for pair in lines if pair[0] != pair[1]][:6]
-            pytest.fail(f"{first.name} differs between two clean runs: {diff}; compute per job: {seen}")
+            rel = first.relative_to(quick_run)
+            pytest.fail(f"{rel} differs between two clean runs: {why}; compute per job: {seen}")
 
 
 @pytest.mark.pipeline

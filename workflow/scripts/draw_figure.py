@@ -6,7 +6,9 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-matplotlib.rcParams.update({"pdf.fonttype": 42, "svg.fonttype": "none"})  # text stays text (editable)
+# text stays text (editable); svg.hashsalt fixes the SVG's clip-path and glyph ids, which matplotlib
+# otherwise draws at random, so the same runs give the same SVG bytes
+matplotlib.rcParams.update({"pdf.fonttype": 42, "svg.fonttype": "none", "svg.hashsalt": "nldr"})
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from _pipeline import atomic_path, setup  # noqa: E402
