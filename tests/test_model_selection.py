@@ -151,8 +151,9 @@ def test_warm_started_path_is_the_hand_chain_of_last_stage_solves():
         W_train = np.where(train, W, np.nan)
         term = MaskedLeastSquares(W_train, train)
         opts = {"gamma": gamma, "options": {"isolation_guard": True, "tol": 1e-7, "gtol": 1e-4}}
+        last_stage = {**opts["options"], "scale": 1.0}  # in the full schedule's units, sqrt(rho0 = 1)
         first = minimize_regularized(term, mean_impute(W_train, train), tau=0.1, **opts)
-        second = minimize_regularized(term, first.x, tau=1.0, rho0=1e4, **opts)
+        second = minimize_regularized(term, first.x, tau=1.0, rho0=1e4, **{**opts, "options": last_stage})
         errors[0.1].append(np.mean((first.x - W)[h] ** 2))
         errors[1.0].append(np.mean((second.x - W)[h] ** 2))
     for tau, errs in errors.items():
@@ -165,13 +166,14 @@ def test_warm_gamma_chains_the_first_solves_of_the_gammas_by_hand():
     g1, g2 = 0.5 * median_gamma(W, mask), median_gamma(W, mask)
     sel = select_regularizer(W, mask, taus=[0.1], gammas=[g2, g1], n_folds=2, warm_gamma=True)
     opts = {"options": {"isolation_guard": True, "tol": 1e-7, "gtol": 1e-4}, "tau": 0.1}
+    last_stage = {**opts["options"], "scale": 1.0}  # in the full schedule's units, sqrt(rho0 = 1)
     errors = {g1: [], g2: []}
     for h in sel.folds_:
         train = mask & ~h
         W_train = np.where(train, W, np.nan)
         term = MaskedLeastSquares(W_train, train)
         first = minimize_regularized(term, mean_impute(W_train, train), gamma=g1, **opts)  # smaller first
-        second = minimize_regularized(term, first.x, gamma=g2, rho0=1e4, **opts)
+        second = minimize_regularized(term, first.x, gamma=g2, rho0=1e4, **{**opts, "options": last_stage})
         errors[g1].append(np.mean((first.x - W)[h] ** 2))
         errors[g2].append(np.mean((second.x - W)[h] ** 2))
     for gamma, errs in errors.items():

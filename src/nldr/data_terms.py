@@ -77,6 +77,8 @@ class MaskedLeastSquares:
         W = as_float_matrix(W, "W", allow_nan=True)
         if mask.shape != W.shape:
             raise ValueError(f"mask and W must have the same shape; got {mask.shape} and {W.shape}")
+        if not mask.any():
+            raise ValueError("mask is all False: W has no observed entry to fit (True marks observed)")
         if not np.all(np.isfinite(W[mask])):
             raise ValueError("W has NaN or infinite values at observed entries (where mask is True)")
         check_magnitude(W[mask], "W")

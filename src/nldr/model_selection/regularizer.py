@@ -78,7 +78,9 @@ def _regularizer_path(
     with threadpool_limits(1):
         data_term = MaskedLeastSquares(W, train)
         rho_max = options.get("rho_max", 1e4)
-        stage = {**options, "rho0": rho_max, "rho_max": rho_max}  # options carries isolation_guard=True
+        # the last stage alone, in the units of the full schedule (scale sqrt(rho0), not sqrt(rho_max))
+        unit = {"scale": float(np.sqrt(options.get("rho0", 1.0)))}
+        stage = merge_solver_kwargs({"options": unit}, options, {"rho0": rho_max, "rho_max": rho_max})
         rows, first = [], None
         for gamma in gammas:
             previous, lowest = first if warm_gamma else None, np.inf
