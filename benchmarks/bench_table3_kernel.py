@@ -78,6 +78,7 @@ def run_case(name, frac, seed, widths, variants, data_dir, runs, step=10):
             opts = dict(variant)
             depth_scale = opts.pop("depth_scale")
             opts["options"] = {key: opts.pop(key) for key in ("tol", "gtol", "stage_tol")}  # solver options
+            opts["options"]["scale"] = 1.0  # Table 3's units (config table3.regularizer.scale)
             if depth_scale:
                 opts["variables"] = CameraFrameVariables(seq.R, mask, depth_scale)
             cpu0 = time.process_time()

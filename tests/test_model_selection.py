@@ -91,7 +91,8 @@ class WarmRegularizer(TransformerMixin, BaseEstimator):
         mask = ~np.isnan(X)
         warm = self.warm_start and hasattr(self, "x_")
         start, rho0 = (self.x_, 1e4) if warm else (mean_impute(X, mask), 1.0)
-        options = {"tol": self.tol, "gtol": self.gtol}
+        # the last stage in the units of the full schedule (scale sqrt(rho0 = 1)), as a tau path runs it
+        options = {"tol": self.tol, "gtol": self.gtol, "scale": 1.0}
         self.x_ = solve(X, mask, start, self.gamma, self.tau, rho0=rho0, **options)
         return self.x_
 

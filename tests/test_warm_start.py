@@ -17,8 +17,13 @@ def warm(**options):
     return {"method": "nystroem-warm", "options": {"landmarks": 12, **options}}
 
 
-def nystroem(m):
-    return {"method": "nystroem", "options": {"landmarks": m}}
+def nystroem(m, scale=None):
+    return {"method": "nystroem", "options": {"landmarks": m, "scale": scale}}
+
+
+#: The stages of a schedule started at rho0 = 1 run in its units (scale sqrt(rho0) = 1): a solve that
+#: repeats its last stages alone from rho0 = 1e3 says so to take the same steps.
+UNIT = {"scale": 1.0}
 SCHEDULE = {"rho0": 1.0, "rho_growth": 10.0, "rho_max": 1e3}
 
 
@@ -42,7 +47,9 @@ def test_final_stages_are_the_exact_solvers_stages_from_the_nystroem_result(prob
     first = minimize_regularized(
         term, S0, gamma=GAMMA, tau=TAU, rho0=1.0, rho_max=rhos[first_exact], **nystroem(12)
     )
-    exact = minimize_regularized(term, first.x, gamma=GAMMA, tau=TAU, rho0=rhos[first_exact], rho_max=1e3)
+    exact = minimize_regularized(
+        term, first.x, gamma=GAMMA, tau=TAU, rho0=rhos[first_exact], rho_max=1e3, options=UNIT
+    )
     np.testing.assert_array_equal(res.x, exact.x)
     assert res.fun == exact.fun
     np.testing.assert_array_equal(res.C, exact.C)
@@ -129,8 +136,10 @@ def test_last_landmarks_changes_only_the_last_nystroem_stage(problem):
     term, S0 = problem
     res = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **warm(last_landmarks=20))
     early = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, rho0=1.0, rho_max=100.0, **nystroem(12))
-    late = minimize_regularized(term, early.x, gamma=GAMMA, tau=TAU, rho0=1e3, rho_max=1e3, **nystroem(20))
-    exact = minimize_regularized(term, late.x, gamma=GAMMA, tau=TAU, rho0=1e3, rho_max=1e3)
+    late = minimize_regularized(
+        term, early.x, gamma=GAMMA, tau=TAU, rho0=1e3, rho_max=1e3, **nystroem(20, scale=1.0)
+    )
+    exact = minimize_regularized(term, late.x, gamma=GAMMA, tau=TAU, rho0=1e3, rho_max=1e3, options=UNIT)
     np.testing.assert_array_equal(res.x, exact.x)
     np.testing.assert_array_equal(res.stage_energy, np.concatenate([early.stage_energy, late.stage_energy,
                                                                     exact.stage_energy]))  # fmt: skip

@@ -27,9 +27,9 @@ __all__ = [
 
 
 def _check_flag(value, name: str) -> bool:
-    if not isinstance(value, bool):
+    if not isinstance(value, bool | np.bool_):
         raise ValueError(f"{name} must be True or False; got {value!r}")
-    return value
+    return bool(value)
 
 
 def _check_seed(value, name: str) -> int:
@@ -54,6 +54,9 @@ class _StoppingOptions:
         ``tol`` of every stage but the last; None means ``tol``.
     isolation_guard : bool, default True
         Start the schedule at ``max(rho0, isolation_safe_rho0(tau))`` (module :mod:`nldr.regularizer`).
+    scale : float > 0 or None, default None
+        The length unit of the stopping tests, in the units of S (energies in ``scale**2``); None
+        means ``sqrt(rho0)`` (see :func:`nldr.regularizer.minimize_regularized`).
     """
 
     max_inner: int = 3000
@@ -61,6 +64,7 @@ class _StoppingOptions:
     gtol: float = 1e-6
     stage_tol: float | None = None
     isolation_guard: bool = True
+    scale: float | None = None
 
     def __post_init__(self):
         self._set("max_inner", check_count(self.max_inner, "options['max_inner']"))
@@ -68,7 +72,9 @@ class _StoppingOptions:
         self._set("gtol", check_positive(self.gtol, "options['gtol']"))
         if self.stage_tol is not None:
             self._set("stage_tol", check_positive(self.stage_tol, "options['stage_tol']"))
-        _check_flag(self.isolation_guard, "options['isolation_guard']")
+        self._set("isolation_guard", _check_flag(self.isolation_guard, "options['isolation_guard']"))
+        if self.scale is not None:
+            self._set("scale", check_positive(self.scale, "options['scale']"))
 
     def _set(self, name, value):
         object.__setattr__(self, name, value)

@@ -118,12 +118,12 @@ def kernel_factor(l: np.ndarray, U: np.ndarray) -> np.ndarray:
 
 def lbfgs_stage(
     S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint, variables=None,
-    plateau=None,
+    plateau=None, scale=1.0,
 ):  # fmt: skip
     """One penalty stage: L-BFGS on the exact reduced energy from S (see :func:`lbfgs_minimize`).
 
     With ``variables`` (a linear change of variables S = A(Y), see ``minimize_regularized``) L-BFGS
-    runs on Y, with the gradient A^T(dE/dS); the returned S is A(Y). ``plateau``: see
+    runs on Y, with the gradient A^T(dE/dS); the returned S is A(Y). ``plateau``, ``scale``: see
     :func:`lbfgs_minimize`.
     """
     if variables is not None:
@@ -135,41 +135,47 @@ def lbfgs_stage(
             return value, variables.gradient_to_variables(grad)
 
         Y0 = variables.to_variables(S)
-        Y, nit, ok, why = lbfgs_minimize(value_grad_y, Y0, max_inner, tol, gtol, energies, plateau)
+        Y, nit, ok, why = lbfgs_minimize(value_grad_y, Y0, max_inner, tol, gtol, energies, plateau, scale)
         return variables.to_samples(Y), nit, ok, why
 
     def value_grad(S):
         value, grad, _ = reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver, hint)
         return value, grad
 
-    return lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies, plateau)
+    return lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies, plateau, scale)
 
 
 #: Iterations over which ``lbfgs_minimize(plateau=...)`` averages the energy's decrease.
 PLATEAU_WINDOW = 10
 
 
-def lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies, plateau=None):
+def lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies, plateau=None, scale=1.0):
     """Minimise ``value_grad(S) -> (value, gradient of S's shape)`` by L-BFGS from S.
 
     Appends the energy after every iteration to ``energies``; returns ``(S, nit, converged, message)``.
+    ``scale`` (> 0) is the unit of S: L-BFGS runs on x = S / scale and F(x) = E(scale x) / scale^2, so
+    its tests read ``(E_k - E_{k+1}) / max(|E_k|, |E_{k+1}|, scale^2) <= tol`` and
+    ``max |dE/dS| <= gtol * scale``, and its first step has length ``scale`` (see the maintenance note
+    on scale in :mod:`nldr.regularizer`); with scale = 1 every number is the unscaled run's.
     ``plateau`` (optional, > 0): also stop once the energy fell by at most ``plateau`` (relative,
-    ``max(|E|, 1)``) per iteration on average over the last :data:`PLATEAU_WINDOW` iterations, i.e.
-    ``E_{k-w} - E_k <= w * plateau * max(|E_k|, 1)`` with E_0 the energy at the start S.
+    ``max(|E|, scale^2)``) per iteration on average over the last :data:`PLATEAU_WINDOW` iterations,
+    i.e. ``E_{k-w} - E_k <= w * plateau * max(|E_k|, scale^2)`` with E_0 the energy at the start S.
     """
     shape = S.shape
-    history: list[float] = []  # E_0 (at S), then the energy after every iteration
+    history: list[float] = []  # F_0 (at S), then F after every iteration (F = E / scale^2)
     stopped = []  # set when the plateau test ended the run
     w = PLATEAU_WINDOW
+    unit = scale * scale  # the energy unit
 
     def fun(x):
-        value, grad = value_grad(x.reshape(shape))
+        value, grad = value_grad(x.reshape(shape) * scale)
+        value, grad = value / unit, grad * (scale / unit)
         if not history:
             history.append(float(value))  # L-BFGS-B evaluates the start first
         return value, grad.ravel()
 
     def record(intermediate_result):
-        energies.append(float(intermediate_result.fun))
+        energies.append(float(intermediate_result.fun) * unit)
         history.append(float(intermediate_result.fun))
         if plateau is not None and len(history) > w:
             if history[-1 - w] - history[-1] <= w * plateau * max(abs(history[-1]), 1.0):
@@ -178,7 +184,7 @@ def lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies, plateau=None):
 
     res = minimize(
         fun,
-        S.ravel(),
+        S.ravel() / scale,
         jac=True,
         method="L-BFGS-B",
         callback=record,
@@ -190,7 +196,7 @@ def lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies, plateau=None):
     message = str(res.message)
     if stopped:
         message = f"energy plateau: relative decrease <= {plateau:g} per iteration over the last {w}"
-    return res.x.reshape(shape), int(res.nit), converged, message
+    return res.x.reshape(shape) * scale, int(res.nit), converged, message
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,10 @@ import numpy as np
 
 from ._validation import check_positive
 
-__all__ = ["penalty_schedule", "isolation_safe_rho0"]
+__all__ = ["penalty_schedule", "isolation_safe_rho0", "MAX_PENALTY_STAGES"]
+
+#: Most stages a schedule may have (the paper's have 3 to 5; growth 1.01 from 1 to 1e4 needs 927).
+MAX_PENALTY_STAGES = 1000
 
 
 def penalty_schedule(rho0: float, rho_growth: float, rho_max: float, *, floor=None) -> list[float]:
@@ -29,6 +32,12 @@ def penalty_schedule(rho0: float, rho_growth: float, rho_max: float, *, floor=No
     -------
     rhos : list of float
         One weight per stage, increasing; never empty.
+
+    Raises
+    ------
+    ValueError
+        For a parameter out of range, or a schedule of more than :data:`MAX_PENALTY_STAGES` stages
+        (counted before any is built).
     """
     rho0 = check_positive(rho0, "rho0")
     rho_growth = check_positive(rho_growth, "rho_growth")
@@ -39,6 +48,13 @@ def penalty_schedule(rho0: float, rho_growth: float, rho_max: float, *, floor=No
         raise ValueError(f"rho_max must be >= rho0 = {rho0!r}; got {rho_max!r}")
     if floor is not None and rho0 < check_positive(floor, "floor"):
         rho0, rho_max = floor, max(rho_max, floor)
+    expected = np.log(rho_max * (1.0 + 1e-12) / rho0) / np.log(rho_growth)
+    if not expected < MAX_PENALTY_STAGES:  # also inf / nan from a growth a hair above 1
+        raise ValueError(
+            f"rho_growth={rho_growth!r} takes about {expected:.3g} stages from rho0={rho0:g} to "
+            f"rho_max={rho_max:g}; at most {MAX_PENALTY_STAGES} are allowed: raise rho_growth (the paper "
+            "uses 10) or narrow the range"
+        )
     rhos, rho = [], rho0
     while rho <= rho_max * (1.0 + 1e-12):
         rhos.append(rho)

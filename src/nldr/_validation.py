@@ -7,6 +7,8 @@ import numpy as np
 
 def as_float_matrix(value, name: str, *, ndim: int = 2, allow_nan: bool = False) -> np.ndarray:
     """Return ``value`` as a float64 array of ``ndim`` dimensions or raise a ValueError naming it."""
+    if np.iscomplexobj(value):
+        raise ValueError(f"{name} is complex; pass real data (e.g. its real part or its modulus)")
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:

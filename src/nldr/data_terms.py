@@ -70,6 +70,8 @@ class MaskedLeastSquares:
 
     def __init__(self, W, mask):
         W, mask = check_masked_matrix(W, mask, require_observed_columns=False)
+        if not mask.any():
+            raise ValueError("mask is all False: W has no observed entry to fit (True marks observed)")
         check_magnitude(W[mask], "W")
         self.W = W
         self.mask = mask

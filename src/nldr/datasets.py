@@ -19,6 +19,7 @@ import hashlib
 import os
 import shutil
 import tempfile
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -87,6 +88,9 @@ FILES: dict[str, DataFile] = {
 }
 
 OIL_SPLITS = {"train": "Trn", "test": "Tst", "validation": "Vdn"}
+#: Rows of each oil-flow split, and of the three together.
+OIL_SPLIT_ROWS = 1000
+OIL_ROWS = 3 * OIL_SPLIT_ROWS
 MOCAP_SEQUENCES = ("drink", "pickup", "yoga", "stretch", "dance")
 
 _MIRROR_HINT = (
@@ -226,13 +230,18 @@ def fetch(relpath: str, data_dir=None, *, mirror=None) -> Path:
     if dest.is_file():
         return verify(dest, relpath)
     mirror = os.environ.get("NLDR_DATA_MIRROR") if mirror is None else mirror
+    source = Path(mirror) / spec.relpath if mirror else None
+    try:
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp_name = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.name}.", suffix=".part")
+    except OSError as exc:
+        return _unwritable(relpath, root, dest.parent, exc, source, data_dir is None)
     if not mirror:
+        os.close(fd)
+        Path(tmp_name).unlink(missing_ok=True)
         _download(spec, root)
         return verify(dest, relpath, source=spec.url)
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.name}.", suffix=".part")
     tmp = Path(tmp_name)
-    source = Path(mirror) / spec.relpath
     try:
         with os.fdopen(fd, "wb") as out:
             if not source.is_file():
@@ -253,6 +262,32 @@ def fetch(relpath: str, data_dir=None, *, mirror=None) -> Path:
     finally:
         tmp.unlink(missing_ok=True)
     return dest
+
+
+def _unwritable(relpath, root, folder, exc, source, from_env) -> Path:
+    """``fetch`` cannot write into the data directory: use a readable, verified mirror copy in place
+    (with a warning), else a DataError naming the folder and the fix."""
+    where = "NLDR_DATA_DIR" if from_env and os.environ.get("NLDR_DATA_DIR") else "the data directory"
+    problem = (
+        f"{relpath}: cannot write into {where} {root} ({type(exc).__name__}: {exc.strerror or exc}"
+        f"{'; it is a file, not a folder' if root.is_file() else ''})"
+    )
+    if source is not None and source.is_file():
+        path = verify(source, relpath)
+        warnings.warn(
+            f"{problem}; reading the mirror copy {path} in place instead. Point NLDR_DATA_DIR (or "
+            "data_dir) at a writable folder to keep a copy.",
+            UserWarning,
+            stacklevel=3,
+        )
+        return path
+    hint = (
+        f" The mirror has no {source} either." if source is not None else f" {_MIRROR_HINT}"
+    )
+    raise DataError(
+        f"{problem}. Point NLDR_DATA_DIR (or data_dir) at a writable folder, or unset it to use the "
+        f"cache folder.{hint}"
+    )
 
 
 def load_oil(split: str = "train", data_dir=None) -> tuple[np.ndarray, np.ndarray]:
@@ -295,11 +330,13 @@ def load_oil(split: str = "train", data_dir=None) -> tuple[np.ndarray, np.ndarra
 def load_oil_rows(n: int, data_dir=None) -> np.ndarray:
     """The first ``n`` oil-flow rows of the training, then validation, then test split.
 
-    Returns X, float array of shape (n, 12); ValueError unless 1 <= n <= 3000.
+    Returns X, float array of shape (n, 12); ValueError unless n is an integer in 1..3000 (checked
+    before any file is read or fetched). Only the splits the first n rows need are loaded.
     """
-    X = np.vstack([load_oil(split, data_dir)[0] for split in ("train", "validation", "test")])
-    if not 0 < n <= X.shape[0]:
-        raise ValueError(f"n must lie in 1..{X.shape[0]}; got {n}")
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or not 0 < n <= OIL_ROWS:
+        raise ValueError(f"n must be an integer in 1..{OIL_ROWS} (rows of the three splits); got {n!r}")
+    splits = ("train", "validation", "test")[: -(-int(n) // OIL_SPLIT_ROWS)]
+    X = np.vstack([load_oil(split, data_dir)[0] for split in splits])
     return X[:n]
 
 

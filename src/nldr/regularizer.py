@@ -33,18 +33,36 @@ larger rho and a lower threshold. The option ``isolation_guard`` (on by default)
 It changes nothing when rho0 >= tau sqrt(27/8) already, which holds for every table of the paper
 (Table 2: tau = 0.1, rho0 = 1 >= 0.184; Tables 3-4: tau = 1e-4, rho0 = 1e-3 >= 1.8e-4), so their
 results stay bit for bit.
+
+Maintenance note (scale: why the stopping tests take their units from rho0). For data scaled by s,
+the exactly equivalent problem has gamma / s^2 and tau, rho (every stage's) times s^2: K is
+unchanged, so the energy (1) is s^2 times the original and its minimisers s times the original's.
+L-BFGS-B is not invariant to that on its own: its energy test divides by max(|E|, 1), its gradient
+test is absolute, and its first step has length 1 in the units of S. So every stage runs L-BFGS on
+x = S / scale with the energy E / scale^2 (:func:`nldr._reduced.lbfgs_minimize`), where scale is
+the option ``scale`` or, by default, sqrt(rho0): rho0 multiplies a dimensionless mismatch, so it is
+an energy of the problem and sqrt(rho0) one of its lengths, and it scales by s^2 with the problem.
+Then the equivalent problem takes the same iterates (up to rounding), and every test is relative:
+``(E_k - E_{k+1}) / max(|E_k|, |E_{k+1}|, rho0) <= tol``, ``max |dE/dS| <= gtol sqrt(rho0)``,
+and the plateau test likewise. At rho0 = 1 (the paper's completion schedule) scale is 1 and every
+number is the unscaled run's, bit for bit. The isolation guard's floor tau sqrt(27/8) scales with
+tau, so it needs no unit. What the default does not fix: parameters left at values meant for
+another scale (tau = 0.1 on data in raw units); the paper's completion parameters assume data of
+unit scale (oil flow: entries in [-0.26, 2.17], RMS 0.75). A solve whose estimate is its start
+unchanged reports INACCURATE and says why instead of "converged".
 """
 
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass
 
 import numpy as np
 
 from ._nystroem import landmark_indices, landmark_map, nystroem_factor, nystroem_value_grad
 from ._options import ExactOptions, NystroemOptions, NystroemWarmOptions, solver_options
+from ._penalty import RegularizerResult, penalty_method
 from ._reduced import (
     KRYLOV_AUTO_FRACTION,
     RankHint,
@@ -61,7 +79,6 @@ from ._threads import blas_threads_for
 from ._validation import as_float_matrix, check_positive
 from .data_terms import DataTerm, check_start
 from .kernels import center_kernel
-from .result import CONVERGED, INACCURATE, MAX_ITER, SolverResult
 
 __all__ = [
     "RegularizerResult",
@@ -72,58 +89,13 @@ __all__ = [
     "isolation_safe_rho0",
     "penalty_method",
     "KRYLOV_AUTO_FRACTION",
+    "LONG_SOLVE_ROWS",
+    "LongSolveWarning",
     "StageInfo",
     "ExactOptions",
     "NystroemOptions",
     "NystroemWarmOptions",
 ]
-
-
-@dataclass(kw_only=True, repr=False)
-class RegularizerResult(SolverResult):
-    """Outcome of :func:`minimize_regularized` (and of the reference alternation).
-
-    Attributes
-    ----------
-    x : array, shape (n_samples, n_features)
-        The estimate S, in the units of the data term's variable (samples as rows).
-    fun : float
-        Energy (1) at ``x`` and the optimal C, at the last stage's rho (``stage_energy[-1]``).
-    status : int
-        :data:`~nldr.result.CONVERGED` when every stage met its tolerance, else
-        :data:`~nldr.result.MAX_ITER` (a stage reached its iteration limit first). An L-BFGS stage
-        that stops on an abnormal line search counts as converged (at these tolerances that is
-        rounding noise at the minimum), so :data:`~nldr.result.INACCURATE` is never reported.
-    message : str
-        Why the solver stopped; names every stage that did not converge.
-    nit : int
-        Total inner iterations over all stages (L-BFGS iterations, or sweeps of the alternation).
-    wall_time : float
-        Seconds spent in the solver.
-    C : array, shape (n_samples, n_samples)
-        Kernel factor ``diag(l) U^T`` of the last stage (closed-form C-step at ``x``).
-    energy_history : array, shape (nit,)
-        Energy (1) after every inner iteration, at the rho of its stage; values of different stages
-        are not comparable.
-    stage_of_iteration : array of int, shape (nit,)
-        Index of the rho stage each entry of ``energy_history`` belongs to.
-    stage_energy : array, shape (n_stages,)
-        Energy (1) at the end of each stage.
-    rho_history : array, shape (n_stages,)
-        Penalty weight of each stage.
-    rank_history : array of int, shape (n_stages,)
-        Rank of C at the end of each stage.
-    n_stages : int
-        Number of rho stages run.
-    """
-
-    C: np.ndarray
-    energy_history: np.ndarray
-    stage_of_iteration: np.ndarray
-    stage_energy: np.ndarray
-    rho_history: np.ndarray
-    rank_history: np.ndarray
-    n_stages: int
 
 
 # --------------------------------------------------------------------------------------------------
@@ -133,6 +105,39 @@ class RegularizerResult(SolverResult):
 
 def _check_problem(data_term, S, gamma, tau, name_S="S"):
     return check_start(data_term, S, name_S), check_positive(gamma, "gamma"), check_positive(tau, "tau")
+
+
+#: From this many samples a solve on the exact kernel throughout warns about its cost
+#: (:class:`LongSolveWarning`). One evaluation (an n x n eigenproblem) measured 6.6-7.6x dearer at
+#: 2000 rows than at 1000 and 17-40x at 3000 (one BLAS thread; docs/PERFORMANCE.md#long-solves), and a
+#: default 1000-row solve takes about 52 CPU s: about 3 CPU minutes at 1500 rows, 23 at 3000.
+LONG_SOLVE_ROWS = 1500
+#: CPU seconds of a default exact solve on 1000 oil-flow rows (docs/PERFORMANCE.md#scale).
+_SECONDS_AT_1000_ROWS = 52.0
+
+
+class LongSolveWarning(UserWarning):
+    """A solve on the exact kernel at a size where it takes minutes; the message names the faster path."""
+
+
+def _warn_long_solve(n: int) -> None:
+    minutes = _SECONDS_AT_1000_ROWS * (n / 1000.0) ** 3 / 60.0
+    warnings.warn(
+        f"minimize_regularized: {n} samples on the exact kernel: expect about {minutes:.0f} CPU minutes "
+        f"(about {_SECONDS_AT_1000_ROWS:.0f} CPU s at 1000 rows, growing as n^3; "
+        "docs/PERFORMANCE.md#long-solves). "
+        "method='nystroem-warm' reaches an exact answer faster (1000 rows: about 8 CPU s with options "
+        "{'last_landmarks': 200, 'exact_tol': 1e-5}); method='nystroem' (e.g. options {'landmarks': 300}) "
+        "is approximate and cheaper still. verbose=True prints each stage as it ends",
+        LongSolveWarning,
+        stacklevel=3,
+    )
+
+
+def _check_center(center) -> bool:
+    if not isinstance(center, bool | np.bool_):
+        raise ValueError(f"center must be True or False (double-centre the kernel or not); got {center!r}")
+    return bool(center)
 
 
 def reduced_energy(
@@ -176,7 +181,7 @@ def reduced_energy(
     S, gamma, tau = _check_problem(data_term, S, gamma, tau)
     rho = check_positive(rho, "rho")
     eigensolver = check_eigensolver(eigensolver)
-    value, grad, _ = reduced_value_grad(S, data_term, gamma, tau, rho, bool(center), eigensolver)
+    value, grad, _ = reduced_value_grad(S, data_term, gamma, tau, rho, _check_center(center), eigensolver)
     return float(value), grad
 
 
@@ -201,7 +206,7 @@ def optimal_kernel_factor(
     S = as_float_matrix(S, "S")
     gamma, tau, rho = check_positive(gamma, "gamma"), check_positive(tau, "tau"), check_positive(rho, "rho")
     K = rbf(S, gamma)
-    if center:
+    if _check_center(center):
         K = center_kernel(K)
     _, U, l = spectrum(K, tau, rho, check_eigensolver(eigensolver))
     return kernel_factor(l, U)
@@ -242,66 +247,9 @@ def _regularized_energy(
 # --------------------------------------------------------------------------------------------------
 
 
-def penalty_method(
-    S, rhos, stage, stage_end, *, start: float, callback=None, verbose=False
-) -> RegularizerResult:
-    """The penalty method's outer loop (Algorithm 1), shared by every solver of the regularizer.
-
-    For each rho of ``rhos``, ``stage(S, rho, energies) -> (S, nit, ok, why)`` minimises the energy at
-    that rho from the previous stage's S, appending one energy per inner iteration to ``energies``;
-    ``stage_end(S, rho) -> (value, C, rank)`` then gives the stage's final energy, kernel factor and
-    rank. ``start`` is ``time.perf_counter()`` at the solver's entry. After each stage a
-    :class:`StageInfo` is printed if ``verbose`` and passed to ``callback``; a callback returning True
-    ends the loop (status INACCURATE: the schedule was not completed). No validation.
-    """
-    energies: list[float] = []
-    stage_index: list[int] = []
-    stage_energy, ranks, failures = [], [], []
-    nit, stopped = 0, None
-    for k, rho in enumerate(rhos):
-        before, t0 = len(energies), time.perf_counter()
-        S, stage_nit, ok, why = stage(S, rho, energies)
-        stage_index.extend([k] * (len(energies) - before))
-        nit += stage_nit
-        value, C, rank = stage_end(S, rho)
-        stage_energy.append(value)
-        ranks.append(rank)
-        if not ok:
-            failures.append(f"stage {k} (rho={rho:g}): {why}")
-        if verbose or callback is not None:
-            info = StageInfo(
-                stage=k, n_stages=len(rhos), rho=float(rho), nit=int(stage_nit), energy=float(value),
-                rank=int(rank), converged=bool(ok), seconds=time.perf_counter() - t0, x=S.copy(),
-            )  # fmt: skip
-            if verbose:
-                print(f"minimize_regularized {info}", flush=True)
-            if callback is not None and callback(info) is True and k + 1 < len(rhos):
-                stopped, rhos = k, rhos[: k + 1]
-                break
-    if failures:
-        message = "iteration limit reached in " + "; ".join(failures)
-    else:
-        message = f"all {len(rhos)} penalty stages converged (rho {rhos[0]:g} to {rhos[-1]:g})"
-    if stopped is not None:
-        message = f"stopped by the callback after stage {stopped} (rho={rhos[-1]:g}); " + message
-    return RegularizerResult(
-        x=S,
-        fun=float(stage_energy[-1]),
-        status=INACCURATE if stopped is not None else MAX_ITER if failures else CONVERGED,
-        message=message,
-        nit=nit,
-        wall_time=time.perf_counter() - start,
-        C=C,
-        energy_history=np.asarray(energies, dtype=np.float64),
-        stage_of_iteration=np.asarray(stage_index, dtype=np.int64),
-        stage_energy=np.asarray(stage_energy, dtype=np.float64),
-        rho_history=np.asarray(rhos, dtype=np.float64),
-        rank_history=np.asarray(ranks, dtype=np.int64),
-        n_stages=len(rhos),
-    )
-
-
-def _run_stages(S, data_term, gamma, tau, center, rhos, opts, plan, start, callback, verbose, variables):
+def _run_stages(
+    S, data_term, gamma, tau, center, rhos, opts, plan, start, callback, verbose, variables, scale
+):
     """One L-BFGS solve per penalty weight, warm-started; the closed-form C after each. No validation.
 
     ``opts`` is the method's options record (:mod:`nldr._options`); ``plan`` is None (the exact kernel
@@ -309,7 +257,7 @@ def _run_stages(S, data_term, gamma, tau, center, rhos, opts, plan, start, callb
     ``approximate_stages`` stages use the Nystroem kernel on ``landmarks`` landmarks
     (``last_landmarks`` for the last of them), the rest are exact with the plateau test ``plateau``
     (:func:`nldr._reduced.lbfgs_minimize`). ``rhos`` may repeat a weight (a Nystroem stage and then
-    the exact stage at the same rho).
+    the exact stage at the same rho). ``scale``: the unit of S of every stage's stopping tests.
     """
     hint = RankHint()
     tols, max_inner, gtol = opts.tols, opts.max_inner, opts.gtol
@@ -329,14 +277,14 @@ def _run_stages(S, data_term, gamma, tau, center, rhos, opts, plan, start, callb
         tol = tols[1] if rho == rhos[-1] else tols[0]
         if not nystroem_here():  # exact kernel; L-BFGS on S, or on Y with S = variables.to_samples(Y)
             args = (S, data_term, gamma, tau, rho, center, max_inner, tol, gtol, energies, eigensolver, hint)
-            return lbfgs_stage(*args, variables, plateau=plateau)  # plateau is only set on the warm path
+            return lbfgs_stage(*args, variables, plateau=plateau, scale=scale)  # plateau: warm path only
         frozen["Z"] = Z = S[idx_last if done[0] == n_approx - 1 else idx].copy()  # fixed during the stage
         frozen["P"] = P = landmark_map(Z, gamma)
 
         def value_grad(S):
             return nystroem_value_grad(S, Z, P, data_term, gamma, tau, rho, center)
 
-        return lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies)
+        return lbfgs_minimize(value_grad, S, max_inner, tol, gtol, energies, scale=scale)
 
     def stage_end(S, rho):
         nystroem, done[0] = nystroem_here(), done[0] + 1
@@ -423,9 +371,14 @@ def minimize_regularized(
 
         - ``max_inner`` (int, default 3000): per-stage limit of L-BFGS iterations.
         - ``tol`` (float > 0, default 1e-10): stage convergence (the L-BFGS ``ftol``): relative energy
-          decrease per iteration, ``(E_k - E_{k+1}) / max(|E_k|, |E_{k+1}|, 1) <= tol``.
+          decrease per iteration, ``(E_k - E_{k+1}) / max(|E_k|, |E_{k+1}|, scale^2) <= tol``.
         - ``gtol`` (float > 0, default 1e-6): L-BFGS also stops when the largest gradient entry is
-          below gtol.
+          at most ``gtol * scale`` (the gradient in units of energy / length).
+        - ``scale`` (float > 0, default None): the unit of length of these tests (and of L-BFGS's
+          first step), in the units of S; energies are in ``scale^2``. None means ``sqrt(rho0)``,
+          which scales with the problem: for data scaled by s, the exactly equivalent problem
+          (gamma / s^2; tau, rho0, rho_max times s^2) takes the same iterates up to rounding (module
+          maintenance note on scale). At rho0 = 1 it is 1, scipy's own tests.
         - ``stage_tol`` (float > 0, default None): ``tol`` of every stage but the last; None means
           ``tol``. The earlier stages only provide the next one's start: 1e-7 saves a third of the
           iterations, but a start further from the previous minimum can lead to another local minimum
@@ -463,7 +416,8 @@ def minimize_regularized(
         last weight (>= rho0).
     callback : callable, optional
         Called after every stage with a :class:`StageInfo` (stage index, rho, iterations, energy,
-        rank, converged, seconds, a copy of S). If it returns True, the solver stops there and
+        rank, converged, seconds, a copy of S). If it returns a true value (``True``, ``np.True_``,
+        1, ...; None and False go on), the solver stops there and
         returns that stage's estimate with status :data:`~nldr.result.INACCURATE` (the schedule was
         not completed) and the stopping stage named in ``message``; after the last stage it
         changes nothing.
@@ -489,19 +443,29 @@ def minimize_regularized(
         If ``data_term`` is not a DataTerm, ``S0`` has the wrong shape or non-finite entries, a
         parameter is out of range, ``method`` is unknown or ``options`` holds an option the method
         does not take (the message names it).
+
+    Warns
+    -----
+    LongSolveWarning
+        From :data:`LONG_SOLVE_ROWS` samples when every stage runs on the exact kernel: the expected
+        CPU time and the faster methods (before any evaluation).
     """
     start = time.perf_counter()
     S, gamma, tau = _check_problem(data_term, S0, gamma, tau, name_S="S0")
+    center = _check_center(center)
     opts = solver_options(method, options)
     floor = isolation_safe_rho0(tau) if opts.isolation_guard else None
     rhos = penalty_schedule(rho0, rho_growth, rho_max, floor=floor)
+    scale = float(np.sqrt(float(rho0))) if opts.scale is None else opts.scale
     if callback is not None and not callable(callback):
         raise ValueError(f"callback must be callable or None; got {type(callback).__name__}")
     if variables is not None and (method != "exact" or not hasattr(variables, "gradient_to_variables")):
         raise ValueError("variables must be a change of variables (see the docstring), with method='exact'")
     rhos, plan = _stage_plan(method, opts, S.shape[0], rhos)
+    if plan is None and S.shape[0] >= LONG_SOLVE_ROWS:
+        _warn_long_solve(S.shape[0])
     with blas_threads_for(S.shape[0]):  # one BLAS thread on small problems (nldr._threads)
         return _run_stages(
-            S.copy(), data_term, gamma, tau, bool(center), rhos, opts, plan, start, callback, bool(verbose),
-            variables,
+            S.copy(), data_term, gamma, tau, center, rhos, opts, plan, start, callback, bool(verbose),
+            variables, scale,
         )  # fmt: skip

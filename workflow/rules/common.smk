@@ -1,8 +1,10 @@
 # Paths of every experiment's files, derived from the config and the registry nldr.experiments.
+import yaml
 from snakemake.exceptions import WorkflowError
 
 from nldr.datasets import DataError, verify_present
 from nldr.experiments import EXPERIMENTS, figure_owner
+from nldr.experiments.base import float_counts
 
 REPO = Path(workflow.basedir)
 DATA_DIR = config["data"]["dir"]
@@ -20,6 +22,19 @@ def _checked_jobs(experiment):
         raise WorkflowError(f"invalid config: {exc}") from None
 
 
+def _integers_are_integers():
+    """Integer keys written as floats (n_masks: 2.0) pass the schema (JSON Schema counts 2.0 as an
+    integer) and would fail inside every job, naming no key: refused here, before any job."""
+    schema = yaml.safe_load((REPO / "workflow/schemas/config.schema.yaml").read_text())
+    bad = float_counts(config, schema)
+    if bad:
+        raise WorkflowError(
+            "invalid config: these keys take an integer (a count, seed or step) and were given a "
+            "float; write them without a decimal point: " + "; ".join(bad)
+        )
+
+
+_integers_are_integers()
 JOBS = {name: _checked_jobs(e) for name, e in EXPERIMENTS.items()}  # built once
 
 

@@ -203,7 +203,7 @@ def rpca_pcp(
 
 def rpca_impute(W, mask, *, lam_factor: float = 1.0, **options) -> RPCAResult:
     """:func:`rpca_pcp` with ``lam = lam_factor * default_pcp_lambda(mask)``: the baselines' signature
-    ``impute(W, mask, **params)``, for :func:`nldr.model_selection.select_imputer`.
+    ``impute(W, mask, **params)``; :class:`nldr.impute.RobustPCAImputer` is its estimator form.
 
     Parameters
     ----------

@@ -24,13 +24,53 @@ import pandas as pd
 from ..paper import paper_frame
 from ..tables import attach_paper
 
-__all__ = ["Job", "JobOutput", "Experiment", "summary_stats", "SD_DDOF"]
+__all__ = ["Job", "JobOutput", "Experiment", "summary_stats", "SD_DDOF", "float_counts"]
 
 #: Standard deviations over replicates (noise draws, masks, seeds) in every table are sample
 #: standard deviations (``ddof=1``); with one replicate the spread is NaN, shown as no "± sd".
 SD_DDOF = 1
 #: what a job id may contain (it names files, and the workflow's wildcard accepts exactly this)
 _JOB_ID = re.compile(r"[A-Za-z0-9_.+-]+")
+
+
+def _types(schema: Mapping) -> set:
+    kind = schema.get("type", ())
+    return {kind} if isinstance(kind, str) else set(kind)
+
+
+def _count_only(schema: Mapping, value: float) -> bool:
+    """Whether ``schema`` admits the float ``value`` only as an integer (JSON Schema's 2.0 == 2)."""
+    if "oneOf" in schema or "anyOf" in schema:
+        from jsonschema.validators import validator_for
+
+        branches = schema.get("oneOf", schema.get("anyOf"))
+        valid = [b for b in branches if validator_for(b)(b).is_valid(value)]
+        return bool(valid) and all(_count_only(b, value) for b in valid)
+    kinds = _types(schema)
+    return "integer" in kinds and "number" not in kinds
+
+
+def float_counts(config, schema: Mapping, path: str = "") -> list[str]:
+    """Config keys the schema types as integers whose value is a float, e.g. ``n_masks: 2.0``.
+
+    JSON Schema counts 2.0 as an integer, so validation passes them; a count, seed or step then fails
+    far from the config (``range(2.0)``, a job id ``seed0.0``). Returns each such key as a dotted path
+    (list items as ``[i]``) with its value; the pipeline refuses them before any job.
+    """
+    found = []
+    if isinstance(config, Mapping):
+        properties = schema.get("properties", {})
+        extra = schema.get("additionalProperties")
+        for key, value in config.items():
+            sub = properties.get(key, extra if isinstance(extra, Mapping) else None)
+            if sub is not None:
+                found += float_counts(value, sub, f"{path}.{key}" if path else str(key))
+    elif isinstance(config, list) and isinstance(schema.get("items"), Mapping):
+        for i, value in enumerate(config):
+            found += float_counts(value, schema["items"], f"{path}[{i}]")
+    elif isinstance(config, float) and _count_only(schema, config):
+        found.append(f"{path}: {config!r}")
+    return found
 
 
 def summary_stats(values, prefix: str, *, extremes: bool = False) -> dict[str, float]:

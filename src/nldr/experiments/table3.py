@@ -150,6 +150,7 @@ def run_sequence(
     tol: float | None = None,
     gtol: float | None = None,
     stage_tol: float | None = None,
+    scale: float | None = None,
     depth_scale: float | None = None,
     tnh_options: Mapping | None = None,
     progress: Callable[[str], None] | None = None,
@@ -180,9 +181,12 @@ def run_sequence(
     tol, gtol, stage_tol : float, optional
         Stopping tolerances of the regularizer's L-BFGS stages
         (:func:`~nldr.regularizer.minimize_regularized`; its defaults when None). Its ``tol`` is
-        relative to ``max(|E|, 1)``, so with the energies of these sequences (about 1e-3: tau = 1e-4
-        times the trace norm of K^(1/2)) it acts as an absolute test a thousand times looser than
-        its nominal value (docs/REPRODUCTION.md#table-3-solver).
+        relative to ``max(|E|, scale^2)``, so with ``scale`` 1 and the energies of these sequences
+        (about 1e-3: tau = 1e-4 times the trace norm of K^(1/2)) it acts as an absolute test a
+        thousand times looser than its nominal value (docs/REPRODUCTION.md#table-3-solver).
+    scale : float > 0, optional
+        The regularizer's option ``scale``: the unit of length of those tests (its default when None,
+        sqrt(rho0)). Table 3 sets 1: its ``tol`` and ``gtol`` were tuned in the data's units.
     depth_scale : float > 0, optional
         Run the kernel stage's L-BFGS in :class:`CameraFrameVariables` with this scale of the
         directions the data term leaves free (same minimisers, far fewer iterations: 100 is the
@@ -230,7 +234,7 @@ def run_sequence(
         rho_max=rho_max,
         options={} if max_inner is None else {"max_inner": max_inner},
     )
-    for key, value in (("tol", tol), ("gtol", gtol), ("stage_tol", stage_tol)):
+    for key, value in (("tol", tol), ("gtol", gtol), ("stage_tol", stage_tol), ("scale", scale)):
         if value is not None:
             regularizer_options["options"][key] = check_positive(value, key)
 

@@ -32,6 +32,7 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from .._cv import positive_grid, run_jobs, summarise_folds
+from .._options import merge_solver_kwargs
 from .._validation import check_count, check_positive
 from ..kernels import d_max_width, d_med_width
 from ..regularizer import minimize_regularized
@@ -134,7 +135,10 @@ def _kernel_fold(W2d, train, hidden, R, X_start, rule, multiples, taus, warm_sta
             for tau in taus:
                 start = time.process_time()
                 if warm_start and previous is not None:
-                    stage = {**options, "rho0": rho_max, "rho_max": rho_max}
+                    # the last stage alone, in the units of the full schedule (scale sqrt(rho0))
+                    unit = {"scale": float(np.sqrt(options.get("rho0", 1.0)))}
+                    last = {"rho0": rho_max, "rho_max": rho_max}
+                    stage = merge_solver_kwargs({"options": unit}, options, last)
                     res = minimize_regularized(term, previous, gamma=m * base_gamma, tau=float(tau), **stage)
                 else:
                     res = minimize_regularized(term, X_start, gamma=m * base_gamma, tau=float(tau), **options)
