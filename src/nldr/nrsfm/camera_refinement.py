@@ -67,8 +67,7 @@ def _frame_costs(Wf3, mask, R, Sf):
 def _cameras(q):
     """Cameras (F, 2, 3) of quaternions (F, 4) and their Jacobian (F, 2, 3, 4): the first two rows of
     :func:`~nldr.nrsfm.rotations.quaternion_rotation`."""
-    A, J = quaternion_rotation(q, jacobian=True)
-    return A[:, :2], J[:, :2]
+    return quaternion_rotation(q, jacobian=True, rows=2)
 
 
 def lm_normal_equations(J, C2, SE):

@@ -48,49 +48,51 @@ def complete_rotations(R, *, project: bool = True) -> np.ndarray:
     return np.concatenate([R, np.cross(R[:, 0], R[:, 1])[:, None]], axis=1)
 
 
-def quaternion_rotation(q, jacobian: bool = False):
-    """Rotation matrices A(q) (F, 3, 3) of the quaternions q / |q| (q: (F, 4), (w, x, y, z), any
-    non-zero length) and, if ``jacobian``, dA/dq (F, 3, 3, 4), else None. No validation (inner loops).
+# H(q), the homogeneous rotation matrix of q = (w, x, y, z) (A = H / |q|^2), entry by entry as quadratic
+# forms q^T E q with E symmetric, so dH/dq = 2 E q. Built from H = [[w2+x2-y2-z2, 2(xy-wz), 2(xz+wy)],
+# [2(xy+wz), w2-x2+y2-z2, 2(yz-wx)], [2(xz-wy), 2(yz+wx), w2-x2-y2+z2]].
+_H_FORMS = np.zeros((3, 3, 4, 4))
+for (_c, _k), _terms in {
+    (0, 0): [(0, 0, 1), (1, 1, 1), (2, 2, -1), (3, 3, -1)],
+    (0, 1): [(1, 2, 1), (2, 1, 1), (0, 3, -1), (3, 0, -1)],
+    (0, 2): [(1, 3, 1), (3, 1, 1), (0, 2, 1), (2, 0, 1)],
+    (1, 0): [(1, 2, 1), (2, 1, 1), (0, 3, 1), (3, 0, 1)],
+    (1, 1): [(0, 0, 1), (1, 1, -1), (2, 2, 1), (3, 3, -1)],
+    (1, 2): [(2, 3, 1), (3, 2, 1), (0, 1, -1), (1, 0, -1)],
+    (2, 0): [(1, 3, 1), (3, 1, 1), (0, 2, -1), (2, 0, -1)],
+    (2, 1): [(2, 3, 1), (3, 2, 1), (0, 1, 1), (1, 0, 1)],
+    (2, 2): [(0, 0, 1), (1, 1, -1), (2, 2, -1), (3, 3, 1)],
+}.items():
+    for _i, _j, _v in _terms:
+        _H_FORMS[_c, _k, _i, _j] = _v
+_H_FORM_ROWS = _H_FORMS.reshape(36, 4)  # rows (c, k, i): E q for every entry is one (F, 4) x (4, 36) product
+
+
+def quaternion_rotation(q, jacobian: bool = False, rows: int = 3):
+    """Rotation matrices A(q) of the quaternions q / |q| (q: (F, 4), (w, x, y, z), any non-zero length):
+    their first ``rows`` rows (F, rows, 3) (2: the orthographic cameras) and, if ``jacobian``,
+    dA/dq (F, rows, 3, 4), else None. No validation (inner loops).
 
     A = H(q) / |q|^2 with every entry of H a quadratic form in q, so the map is invariant to the scale
-    of q and the Jacobian satisfies J q = 0 (the camera LM penalises that direction). The first two
-    rows are the orthographic camera of q.
+    of q and the Jacobian satisfies J q = 0 (the camera LM penalises that direction).
     """
-    q = np.asarray(q, dtype=float)
-    w, x, y, z = q.T
-    n = np.einsum("fi,fi->f", q, q)
-    H = np.stack(
-        [
-            np.stack([w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-            np.stack([2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)], -1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z], -1),
-        ],
-        axis=1,
-    )  # (F, 3, 3), H = |q|^2 A
-    A = H / n[:, None, None]
+    F = q.shape[0]
+    inv = 1.0 / np.einsum("fi,fi->f", q, q)  # 1 / |q|^2
+    Eq = (q @ _H_FORM_ROWS[: 12 * rows].T).reshape(F, 3 * rows, 4)  # E q, rows (c, k)
+    H = Eq @ q[:, :, None]  # (F, 3 rows, 1)
+    A = (H[:, :, 0] * inv[:, None]).reshape(F, rows, 3)
     if not jacobian:
         return A, None
-    # dH/dq: every entry of H is a quadratic form in q; its derivative is linear in q
-    dH = np.empty(H.shape + (4,))
-    dH[:, 0, 0] = 2 * np.stack([w, x, -y, -z], -1)
-    dH[:, 0, 1] = 2 * np.stack([-z, y, x, -w], -1)
-    dH[:, 0, 2] = 2 * np.stack([y, z, w, x], -1)
-    dH[:, 1, 0] = 2 * np.stack([z, y, x, w], -1)
-    dH[:, 1, 1] = 2 * np.stack([w, -x, y, -z], -1)
-    dH[:, 1, 2] = 2 * np.stack([-x, -w, z, y], -1)
-    dH[:, 2, 0] = 2 * np.stack([-y, z, -w, x], -1)
-    dH[:, 2, 1] = 2 * np.stack([x, w, z, y], -1)
-    dH[:, 2, 2] = 2 * np.stack([w, -x, -y, z], -1)
-    # d(H / n) = dH / n - H (2 q^T) / n^2
-    J = dH / n[:, None, None, None] - A[..., None] * (2 * q / n[:, None])[:, None, None, :]
-    return A, J
+    # d(H / n) = dH / n - H dn / n^2 with dH = 2 E q, dn = 2 q: (2 / n) (E q - H q^T / n).
+    J = (2 * inv[:, None, None]) * (Eq - H * (q * inv[:, None])[:, None, :])
+    return A, J.reshape(F, rows, 3, 4)
 
 
 def camera_to_quaternion(R) -> np.ndarray:
     """Unit quaternions (w, x, y, z), w >= 0, of orthographic cameras R (F, 2, 3), completed to
     rotations by :func:`complete_rotations` (projected to orthonormal rows first).
 
-    ``quaternion_rotation(q)[0][:, :2]`` reproduces ``nearest_orthonormal_rows(R)``.
+    ``quaternion_rotation(q, rows=2)[0]`` reproduces ``nearest_orthonormal_rows(R)``.
     """
     q = Rotation.from_matrix(complete_rotations(R)).as_quat()[:, [3, 0, 1, 2]]  # scipy: scalar last
     q[q[:, 0] < 0] *= -1
