@@ -4,9 +4,13 @@
 factorisation (:func:`~nldr.nrsfm.factorization.initialize_cameras`) and then cameras refined with the
 shapes. ``prior`` is the trace-norm heuristic (``"tnh"``, the paper's linear baseline) or the kernel
 regularizer (``"kernel"``, the paper's method), which starts from a TNH reconstruction. ``loss`` is
-the squared reprojection error or its Huber version (``delta``). What runs:
+the squared reprojection error or a robust one: for the kernel method the Huber loss with threshold
+``delta``; for TNH (known cameras) the l1 loss, the Huber loss's delta -> 0 limit, which needs no
+threshold (:mod:`nldr.nrsfm.robust_tnh`). The Huber kernel method therefore starts by default from
+the robust TNH (its ``tau`` in ``tnh``). What runs:
 
-- TNH, known cameras: :func:`~nldr.nrsfm.trace_norm_heuristic` (exact fit by ADMM unless ``tau``);
+- TNH, known cameras: :func:`~nldr.nrsfm.trace_norm_heuristic` (exact fit by ADMM unless ``tau``),
+  or with ``loss="huber"`` :func:`~nldr.nrsfm.robust_tnh.robust_trace_norm_heuristic`;
 - TNH, estimated cameras: TNH alternating with the camera LM from the rigid cameras
   (:func:`~nldr.nrsfm.camera_refinement.tnh_with_camera_refinement`), optionally followed by the
   camera search (:func:`~nldr.nrsfm.camera_search.tnh_camera_search`);
@@ -36,6 +40,7 @@ from .camera_search import tnh_camera_search
 from .factorization import initialize_cameras
 from .joint_kernel import joint_kernel_multistart
 from .reprojection import OrthographicReprojection, check_cameras, check_tracks, reprojection_error
+from .robust_tnh import robust_trace_norm_heuristic
 from .tnh import trace_norm_heuristic
 from .variables import CameraFrameVariables
 
@@ -121,25 +126,26 @@ def reconstruct(
         Known orthographic cameras, or estimate them (see the module docstring).
     prior : {"tnh", "kernel"}, default "tnh"
     loss : {"squared", "huber"}, default "squared"
-        "huber" needs ``delta``.
+        "huber": the kernel method with the Huber loss (needs ``delta``); TNH with the l1 loss (robust
+        TNH, known cameras only).
     tau : float, optional
-        Trace-norm weight, unit of the tracks squared. TNH with known cameras: None or 0 is the exact
-        fit; with estimated cameras it is required. Kernel: default 1e-4 (the paper's).
+        Trace-norm weight, unit of the tracks squared (robust TNH: dimensionless, required). TNH with
+        known cameras: None or 0 is the exact fit; with estimated cameras it is required. Kernel:
+        default 1e-4 (the paper's).
     width : "d_max", "d_med" or float, default "d_med"
         The kernel method's width rule (on the start's shapes) or gamma.
     delta : float > 0, optional
-        Huber threshold, unit of the tracks.
+        The kernel method's Huber threshold, unit of the tracks.
     start : Reconstruction, optional
         The kernel method's start (a TNH reconstruction; with estimated cameras its cameras too);
-        default: ``reconstruct(W2d, visible, cameras=cameras, prior="tnh", loss=loss, delta=delta,
-        **tnh)``.
+        default: ``reconstruct(W2d, visible, cameras=cameras, prior="tnh", loss=loss, **tnh)``.
     tnh : mapping, optional
         Options of the default start (e.g. ``tau`` with estimated cameras).
     **options
         Solver options. TNH, known cameras: :func:`~nldr.nrsfm.trace_norm_heuristic`'s (``method``,
-        ``tol``, ...). TNH, estimated cameras: ``max_outer``, ``tol``, ``window`` of the alternation,
-        ``initial_cameras`` (default: the rigid factorisation) and ``camera_search`` (bool, default
-        False, or a mapping of its options such as ``max_rounds``).
+        ``tol``, ...) or the robust TNH's. TNH, estimated cameras: ``max_outer``, ``tol``, ``window``
+        of the alternation, ``initial_cameras`` (default: the rigid factorisation) and
+        ``camera_search`` (bool, default False, or a mapping of its options such as ``max_rounds``).
         Kernel, known cameras: :func:`~nldr.regularizer.minimize_regularized`'s and ``depth_scale``
         (L-BFGS in :class:`~nldr.nrsfm.CameraFrameVariables`). Kernel, estimated cameras:
         :func:`~nldr.nrsfm.joint_kernel.solve_joint_kernel`'s (the schedule ``rho0``, ``rho_growth``,
@@ -164,22 +170,25 @@ def reconstruct(
         raise ValueError(f"prior must be one of {PRIORS}; got {prior!r}")
     if loss not in LOSSES:
         raise ValueError(f"loss must be one of {LOSSES}; got {loss!r}")
-    if loss == "huber":
+    if loss == "huber" and prior == "kernel":
         if delta is None:
             raise ValueError("loss='huber' needs delta (the Huber threshold, unit of the tracks)")
         delta = check_positive(delta, "delta")
     elif delta is not None:
-        raise ValueError("delta is the Huber threshold; pass loss='huber' with it")
+        raise ValueError("delta is the kernel method's Huber threshold; pass prior='kernel', loss='huber'")
     begin = time.perf_counter()
     common = dict(prior=prior, loss=loss, delta=delta)
     if prior == "tnh":
         if start is not None or tnh is not None:
             raise ValueError("start and tnh are the kernel method's start; TNH takes its options directly")
-        if loss == "huber":
-            raise ValueError("loss='huber' with prior='tnh' needs the robust TNH, which this build lacks")
+        if known and loss == "huber":  # the robust TNH: l1, the Huber loss's delta -> 0 limit
+            res = robust_trace_norm_heuristic(W2d, R, vis, tau=check_positive(tau, "tau"), **options)
+            return _result(res, W, vis, R, tau=res.tau, gamma=np.nan, **common)
         if known:
             res = trace_norm_heuristic(W2d, R, vis, tau=tau, **options)
             return _result(res, W, vis, R, tau=res.tau, gamma=np.nan, **common)
+        if loss == "huber":
+            raise ValueError("the robust TNH (loss='huber') needs known cameras: pass cameras=R")
         tau = check_positive(tau if tau is not None else -1.0, "tau (required with estimated cameras)")
         search = options.pop("camera_search", False)
         R0 = options.pop("initial_cameras", None)
@@ -202,7 +211,7 @@ def reconstruct(
 
     tau = KERNEL_TAU if tau is None else check_positive(tau, "tau")
     if start is None:
-        start = reconstruct(W2d, vis, cameras=cameras, prior="tnh", loss=loss, delta=delta, **dict(tnh or {}))
+        start = reconstruct(W2d, vis, cameras=cameras, prior="tnh", loss=loss, **dict(tnh or {}))
         begin = time.perf_counter()
     elif tnh is not None:
         raise ValueError("give start or tnh (the options of the default start), not both")
