@@ -33,7 +33,7 @@ from conftest import random_rotation
 
 import nldr.nrsfm.camera_refinement as cr
 from nldr.nrsfm import trace_norm_heuristic
-from nldr.nrsfm.camera_refinement import _tnh_alternation, lm_normal_equations, tnh_with_camera_refinement
+from nldr.nrsfm.camera_refinement import lm_normal_equations, tnh_alternation, tnh_with_camera_refinement
 from nldr.nrsfm.factorization import initialize_cameras
 from nldr.nrsfm.fista import fista_tnh
 from nldr.nrsfm.metrics import center_per_frame, e3d, procrustes_rotation
@@ -207,7 +207,7 @@ def test_fixed_shape_tolerance_is_the_reference_up_to_the_thresholding():
     W, mask, _, _ = scene(n_frames=8, n_points=10, seed=4)
     R0 = initialize_cameras(W, mask)
     ref = tnh_with_camera_refinement_reference(W, mask, R0, 3.0)
-    fixed = _tnh_alternation(
+    fixed = tnh_alternation(
         W, mask, R0, 3.0, 20_000, 1e-8, 10, None, shape_tol=(1e-12, 0.0, 1e-12), momentum=False
     )
     assert fixed.nit == ref.nit

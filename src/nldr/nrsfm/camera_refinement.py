@@ -55,6 +55,7 @@ __all__ = [
     "camera_lm",
     "refine_cameras_and_shapes",
     "tnh_with_camera_refinement",
+    "tnh_alternation",
 ]
 
 
@@ -357,15 +358,16 @@ def tnh_with_camera_refinement(
         Shapes ``x``, cameras ``R``, histories (``energy_history`` is the joint energy, ``fun`` its
         last value), ``nit`` outer iterations, ``success``.
     """
-    return _tnh_alternation(W2d, mask, R0, tau, max_outer, tol, window, X0)
+    return tnh_alternation(W2d, mask, R0, tau, max_outer, tol, window, X0)
 
 
-def _tnh_alternation(
+def tnh_alternation(
     W2d, mask, R0, tau, max_outer, tol, window, X0, shape_tol=(1e-12, 1e-2, 1e-6), momentum=True, svt=None
 ):
-    """:func:`tnh_with_camera_refinement`; ``shape_tol`` = (floor, ratio, ceiling) of the shape step's
-    FISTA tolerance (ratio 0: the floor throughout), ``momentum`` and ``svt`` (None: FISTA's default
-    thresholding) are the reference's hooks (:mod:`nldr.reference.nrsfm`)."""
+    """:func:`tnh_with_camera_refinement` with the shape step's knobs, for :mod:`nldr.reference.nrsfm`:
+    ``shape_tol`` = (floor, ratio, ceiling) of its FISTA tolerance (ratio 0: the floor throughout),
+    ``momentum`` (carry FISTA's momentum across outer iterations) and ``svt`` (None: FISTA's default
+    thresholding). Positional as :func:`tnh_with_camera_refinement`'s; no other caller."""
     tau = check_positive(tau, "tau")
     floor, ratio, ceiling = shape_tol
     W, vis = check_tracks(W2d, mask)

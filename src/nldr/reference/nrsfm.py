@@ -9,7 +9,7 @@ tolerance 1e-12 (at most 300 iterations), thresholding by a full SVD. The produc
 
 from __future__ import annotations
 
-from ..nrsfm.camera_refinement import CameraShapeResult, _tnh_alternation
+from ..nrsfm.camera_refinement import CameraShapeResult, tnh_alternation
 from ..nrsfm.svt import soft_threshold_singular_values
 
 __all__ = ["tnh_with_camera_refinement_reference"]
@@ -25,7 +25,7 @@ def tnh_with_camera_refinement_reference(
     beyond rounding. Parameters and result as
     :func:`~nldr.nrsfm.camera_refinement.tnh_with_camera_refinement`.
     """
-    return _tnh_alternation(
+    return tnh_alternation(
         W2d, mask, R0, tau, max_outer, tol, window, X0,
         shape_tol=(1e-12, 0.0, 1e-12), momentum=False, svt=soft_threshold_singular_values,
     )  # fmt: skip
