@@ -33,6 +33,7 @@ from nldr.nrsfm.robust_tnh import robust_trace_norm_heuristic
 from nldr.regularizer import minimize_regularized
 
 SCHEDULE = {"rho0": 1e-2, "rho_growth": 10.0, "rho_max": 1.0, "max_inner": 200}
+SOLVER = {"rho0": 1e-2, "rho_growth": 10.0, "rho_max": 1.0, "options": {"max_inner": 200}}  # the same
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +59,7 @@ def test_known_cameras_tnh_and_kernel_are_their_solvers(scene):
     )
     by_hand = minimize_regularized(
         OrthographicReprojection(W, R, mask), ref.x, gamma=d_max_width(ref.x), tau=1e-4,
-        variables=CameraFrameVariables(R, mask, 10.0), **SCHEDULE,
+        variables=CameraFrameVariables(R, mask, 10.0), **SOLVER,
     )  # fmt: skip
     np.testing.assert_array_equal(kernel.x, by_hand.x)
     assert kernel.fun == by_hand.fun and kernel.gamma == d_max_width(ref.x) and kernel.start is tnh
@@ -110,7 +111,7 @@ def test_huber_loss_starts_from_the_robust_tnh(scene):
         ref.x,
         gamma=d_med_width(ref.x),
         tau=1e-4,
-        **SCHEDULE,
+        **SOLVER,
     )
     np.testing.assert_array_equal(rec.x, by_hand.x)
     assert rec.start.loss == "huber" and rec.delta == 0.1

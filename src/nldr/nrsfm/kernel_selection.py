@@ -33,7 +33,7 @@ from threadpoolctl import threadpool_limits
 from .._cv import positive_grid, run_jobs, summarise_folds
 from .._validation import check_count, check_positive
 from ..regularizer import minimize_regularized
-from .reconstruct import WIDTH_RULES, reconstruct
+from .reconstruct import WIDTH_RULES, reconstruct, solver_arguments
 from .reprojection import OrthographicReprojection, check_cameras, check_tracks, reprojection_error
 from .selection import TNHTauSelection, visibility_folds
 from .tnh import trace_norm_heuristic
@@ -141,7 +141,9 @@ def _kernel_fold(W2d, train, hidden, R, start, rule, multiples, taus, warm_start
                     )  # fmt: skip
                 else:
                     X0 = X_start if previous is None else previous.x
-                    res = minimize_regularized(term, X0, gamma=m * base_gamma, tau=float(tau), **stage)
+                    res = minimize_regularized(
+                        term, X0, gamma=m * base_gamma, tau=float(tau), **solver_arguments(stage)
+                    )
                 previous = res if warm_start else None
                 error = reprojection_error(W2d, hidden, R if R is not None else res.R, res.x, mean=True)
                 rows.append(
@@ -339,7 +341,7 @@ def select_kernel(
             refit["variables"] = CameraFrameVariables(R, mask, depth_scale)
         begin = time.process_time()
         term = OrthographicReprojection(W2d, R, mask)
-        result = minimize_regularized(term, X0, gamma=gamma, tau=tau, **refit)
+        result = minimize_regularized(term, X0, gamma=gamma, tau=tau, **solver_arguments(refit))
         start = (R, X0)
     else:
         R0, X0 = tnh.result_.R, tnh.result_.x

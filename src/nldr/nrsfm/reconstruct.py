@@ -146,7 +146,8 @@ def reconstruct(
         ``tol``, ...) or the robust TNH's. TNH, estimated cameras: ``max_outer``, ``tol``, ``window``
         of the alternation, ``initial_cameras`` (default: the rigid factorisation) and
         ``camera_search`` (bool, default False, or a mapping of its options such as ``max_rounds``).
-        Kernel, known cameras: :func:`~nldr.regularizer.minimize_regularized`'s and ``depth_scale``
+        Kernel, known cameras: :func:`~nldr.regularizer.minimize_regularized`'s, flat (its ``options``
+        beside its arguments, e.g. ``rho0`` and ``tol``) or as it takes them, and ``depth_scale``
         (L-BFGS in :class:`~nldr.nrsfm.CameraFrameVariables`). Kernel, estimated cameras:
         :func:`~nldr.nrsfm.joint_kernel.solve_joint_kernel`'s (the schedule ``rho0``, ``rho_growth``,
         ``rho_max``, tolerances) and ``multistart`` (bool, default True).
@@ -217,14 +218,15 @@ def reconstruct(
         raise ValueError("give start or tnh (the options of the default start), not both")
     X0 = np.asarray(start.x, dtype=np.float64)
     gamma = _gamma(width, X0)
+    options = _flat(options)
     if known:
         depth_scale = options.pop("depth_scale", None)
-        if depth_scale is not None:
-            options["variables"] = CameraFrameVariables(R, vis, depth_scale)
+        variables = None if depth_scale is None else CameraFrameVariables(R, vis, depth_scale)
         term = OrthographicReprojection(W, R, vis)
         res = minimize_regularized(
-            term if delta is None else Huber(term, delta), X0, gamma=gamma, tau=tau, **options
-        )
+            term if delta is None else Huber(term, delta), X0, gamma=gamma, tau=tau, variables=variables,
+            **solver_arguments(options),
+        )  # fmt: skip
         return _result(res, W, vis, R, tau=tau, gamma=gamma, start=start, **common)
     multistart = bool(options.pop("multistart", True))
     label = width if isinstance(width, str) else "gamma"
@@ -242,6 +244,24 @@ def reconstruct(
     main = out.pop(label)
     main.other_widths = out
     return main
+
+
+#: :func:`~nldr.regularizer.minimize_regularized`'s own arguments; every other option goes in its ``options``.
+_SOLVER_ARGUMENTS = ("method", "center", "rho0", "rho_growth", "rho_max", "callback", "verbose", "variables")
+
+
+def solver_arguments(options: Mapping) -> dict:
+    """Flat kernel-method options (``rho0``, ``tol``, ``max_inner``, ...) as the keyword arguments of
+    :func:`~nldr.regularizer.minimize_regularized`: its own arguments, the rest in ``options``."""
+    flat = _flat(options)
+    out = {k: flat.pop(k) for k in _SOLVER_ARGUMENTS if k in flat}
+    return {**out, "options": flat} if flat else out
+
+
+def _flat(options: Mapping) -> dict:
+    """The options with a nested ``options`` mapping (the solver's own form) merged in."""
+    flat = {k: v for k, v in options.items() if k != "options"}
+    return {**flat, **dict(options.get("options") or {})}
 
 
 def _gamma(width, X0) -> float:
