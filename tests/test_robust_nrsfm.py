@@ -57,43 +57,28 @@ def test_huber_kernel_starts_from_the_robust_tnh(monkeypatch):
     """Kernel (LS) starts from TNH's shapes and Kernel (Huber) from TNH (robust)'s, with its delta and tau
     given by huber_kernel_parameters on that start."""
     X, W, R = small_case()
-    starts, robust_results, tnh_results = [], [], []
-    real_min, real_robust, real_tnh = (
-        module.minimize_regularized,
-        module.robust_trace_norm_heuristic,
-        module.trace_norm_heuristic,
-    )
+    calls = []
+    real = module.reconstruct
 
-    def spy_min(term, S0, **kw):
-        starts.append((term, np.array(S0), kw))
-        return real_min(term, S0, **kw)
+    def spy(*a, **kw):
+        calls.append((a, kw, real(*a, **kw)))
+        return calls[-1][2]
 
-    def spy_robust(*a, **kw):
-        robust_results.append(real_robust(*a, **kw))
-        return robust_results[-1]
-
-    def spy_tnh(*a, **kw):
-        tnh_results.append(real_tnh(*a, **kw))
-        return tnh_results[-1]
-
-    monkeypatch.setattr(module, "minimize_regularized", spy_min)
-    monkeypatch.setattr(module, "robust_trace_norm_heuristic", spy_robust)
-    monkeypatch.setattr(module, "trace_norm_heuristic", spy_tnh)
+    monkeypatch.setattr(module, "reconstruct", spy)
     rows, arrays = run_displaced(W, R, X, shares=[0.1], seed=3, settings=SETTINGS, name="synthetic")
     assert list(rows["method"]) == list(METHODS)
-    assert len(starts) == 2
-    (ls_term, ls_start, ls_kw), (hub_term, hub_start, hub_kw) = starts
-    np.testing.assert_array_equal(ls_start, tnh_results[0].x)
-    np.testing.assert_array_equal(hub_start, robust_results[0].x)
-    assert isinstance(ls_term, OrthographicReprojection) and ls_kw["tau"] == SETTINGS["tau"]
-    assert hub_term.delta == rows.loc[rows["method"] == "Kernel (Huber)", "delta"].item()
-    assert hub_kw["tau"] == rows.loc[rows["method"] == "Kernel (Huber)", "tau"].item()
+    (_, tnh_kw, tnh), (_, robust_kw, robust), (_, ls_kw, ls), (hub_args, hub_kw, hub) = calls
+    assert (tnh_kw["prior"], tnh_kw.get("loss", "squared")) == ("tnh", "squared")
+    assert (robust_kw["prior"], robust_kw["loss"]) == ("tnh", "huber")  # the robust TNH
+    assert ls_kw["start"] is tnh and ls_kw["tau"] == SETTINGS["tau"] and ls.loss == "squared"
+    assert hub_kw["start"] is robust and hub.loss == "huber"
+    assert hub.delta == rows.loc[rows["method"] == "Kernel (Huber)", "delta"].item()
+    assert hub.tau == rows.loc[rows["method"] == "Kernel (Huber)", "tau"].item()
     assert hub_kw["max_inner"] == 200  # the Huber block's own regularizer options apply
     tau_r = robust_tnh_tau((12, 24), 0.6)
-    delta, tau = huber_kernel_parameters(
-        hub_term.term, robust_results[0].x, tau_r, hub_kw["gamma"], 1.345, 1.0
-    )
-    assert (delta, tau) == (hub_term.delta, hub_kw["tau"])
+    corrupted = OrthographicReprojection(hub_args[0], R)  # the displaced tracks the Huber solve saw
+    delta, tau = huber_kernel_parameters(corrupted, robust.x, tau_r, hub.gamma, 1.345, 1.0)
+    assert (delta, tau) == (hub.delta, hub.tau)
     # the saved arrays: one reconstruction per method, and which coordinates were displaced
     recon = arrays[0.1]
     assert set(recon.shapes) == set(METHODS)

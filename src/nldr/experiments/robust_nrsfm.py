@@ -29,12 +29,9 @@ from collections.abc import Callable, Mapping
 import numpy as np
 import pandas as pd
 
-from ..data_terms import Huber
 from ..kernels import rbf_kernel
 from ..model_selection import robust_scale
-from ..nrsfm import CameraFrameVariables, OrthographicReprojection, e3d, stack_to_rows, trace_norm_heuristic
-from ..nrsfm.robust_tnh import robust_trace_norm_heuristic
-from ..regularizer import minimize_regularized
+from ..nrsfm import OrthographicReprojection, e3d, reconstruct, stack_to_rows
 from .base import Job, JobOutput, summary_stats
 from .mocap import SEQUENCES, WIDTHS, MocapExperiment, Reconstructions, every_nth_frame
 from .robust import gross_corruption
@@ -127,10 +124,7 @@ def run_displaced(
     corrupted = gross_corruption(
         W2d, np.ones(W2d.shape, dtype=bool), shares, int(seed), low=sd["low"], high=sd["high"]
     )
-    reg = dict(settings["regularizer"])
-    depth_scale = reg.pop("depth_scale", None)
-    if depth_scale is not None:
-        reg["variables"] = CameraFrameVariables(R, mask, depth_scale)
+    reg = dict(settings["regularizer"])  # the kernel method's options of reconstruct (depth_scale too)
     width = WIDTHS[settings["width"]]
     rtnh = dict(settings["robust_tnh"])
     huber = dict(settings["huber"])
@@ -176,17 +170,18 @@ def run_displaced(
             )
 
         start = time.perf_counter()
-        tnh = trace_norm_heuristic(Wc, R, mask, method="admm", **dict(settings["tnh"]))
+        tnh = reconstruct(Wc, mask, cameras=R, prior="tnh", method="admm", **dict(settings["tnh"]))
         record("TNH", tnh.x, start, tnh.success, tnh.nit)
 
         start = time.perf_counter()
         tau_r = robust_tnh_tau(term.shape, rtnh.pop("tau_factor"))
-        robust = robust_trace_norm_heuristic(Wc, R, mask, tau=tau_r, **rtnh)
+        robust = reconstruct(Wc, mask, cameras=R, prior="tnh", loss="huber", tau=tau_r, **rtnh)
         rtnh["tau_factor"] = settings["robust_tnh"]["tau_factor"]
         record("TNH (robust)", robust.x, start, robust.success, robust.nit, tau=tau_r)
 
         start = time.perf_counter()
-        ls = minimize_regularized(term, tnh.x, gamma=width(tnh.x), tau=settings["tau"], **reg)
+        ls_args = dict(width=settings["width"], tau=settings["tau"], start=tnh)
+        ls = reconstruct(Wc, mask, cameras=R, prior="kernel", **ls_args, **reg)
         record("Kernel (LS)", ls.x, start, ls.success, ls.nit, tau=settings["tau"])
 
         start = time.perf_counter()
@@ -195,7 +190,8 @@ def run_displaced(
             term, robust.x, tau_r, gamma, huber["delta_factor"], huber["balance"]
         )
         hub_reg = {**reg, **dict(huber.get("regularizer", {}))}
-        hub = minimize_regularized(Huber(term, delta), robust.x, gamma=gamma, tau=tau_k, **hub_reg)
+        huber_args = dict(loss="huber", delta=delta, width=gamma, tau=tau_k, start=robust)
+        hub = reconstruct(Wc, mask, cameras=R, prior="kernel", **huber_args, **hub_reg)
         record("Kernel (Huber)", hub.x, start, hub.success, hub.nit, delta=delta, tau=tau_k)
         arrays[share] = Reconstructions(
             shapes=shapes, mask=mask, ground_truth=np.asarray(X_gt), extra={"displaced": displaced}
