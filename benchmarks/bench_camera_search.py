@@ -27,11 +27,11 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_mocap
+from nldr.nrsfm.camera_refinement import tnh_with_camera_refinement
 from nldr.nrsfm.camera_search import tnh_camera_search
 from nldr.nrsfm.factorization import initialize_cameras
 from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
 from nldr.nrsfm.metrics import camera_error, e3d
-from nldr.nrsfm.unknown_cameras import tnh_with_camera_refinement
 
 OUT = Path("results/benchmarks/camera_search.csv")
 

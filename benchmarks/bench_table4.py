@@ -1,6 +1,6 @@
 """Benchmark: one evaluation of Table 4's TNH with estimated cameras, before and after the speed-up.
 
-Each case runs :func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement` once, as the tau search
+Each case runs :func:`~nldr.nrsfm.camera_refinement.tnh_with_camera_refinement` once, as the tau search
 of :func:`~nldr.experiments.table4.run_sequence` does for every tau it tries: CMU mocap, every 10th
 frame, 41 points, cameras from :func:`~nldr.nrsfm.factorization.initialize_cameras`, full data or 50 % of
 the (frame, point) observations hidden (``random_visibility_mask(F, P, 0.5, 2016)``), default
@@ -40,10 +40,10 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_mocap
+from nldr.nrsfm.camera_refinement import tnh_with_camera_refinement
 from nldr.nrsfm.factorization import initialize_cameras
 from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
 from nldr.nrsfm.metrics import e3d
-from nldr.nrsfm.unknown_cameras import tnh_with_camera_refinement
 from nldr.reference.nrsfm import tnh_with_camera_refinement_reference
 
 OUT = Path("results/benchmarks/table4_tnh.csv")

@@ -104,8 +104,9 @@ pd.concat(checks, axis=1).round(3) if checks else "no pair to compare in this ru
 # ## What CV chose, and what it cost
 # `solves` is the selection's CPU time divided by that of one solve: for TNH the refit (one
 # alternation at the chosen τ, one evaluation of the oracle's search); for the kernel method the
-# mean of its two paper-value solves on the same mask (Table 4: kernel/camera alternations). The
-# oracle grid point's rows say which grid point ground truth would have picked (no `solves`).
+# mean of its two paper-value solves on the same mask (Table 4: its kernel stage, cameras and shapes
+# jointly). The oracle grid point's rows say which grid point ground truth would have picked (no
+# `solves`).
 
 # %%
 all_runs = pd.concat([pd.read_csv(p) for p in run_paths], ignore_index=True)

@@ -14,11 +14,12 @@ from conftest import project
 from scipy.spatial.transform import Rotation
 
 from nldr.datasets import load_mocap
-from nldr.nrsfm.camera_search import propose_cameras, tnh_camera_search, tnh_energy
+from nldr.nrsfm.camera_refinement import tnh_with_camera_refinement
+from nldr.nrsfm.camera_search import propose_cameras, tnh_camera_search
 from nldr.nrsfm.factorization import initialize_cameras
 from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
 from nldr.nrsfm.metrics import center_per_frame
-from nldr.nrsfm.unknown_cameras import tnh_with_camera_refinement
+from nldr.nrsfm.reprojection import tnh_energy
 
 
 def orbit(n_frames, step_deg=20.0, seed=0):

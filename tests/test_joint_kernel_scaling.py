@@ -1,4 +1,4 @@
-"""Block scaling of the joint camera-and-shape step and Table 4's multi-start kernel stage (issue 16).
+"""Block scaling of the joint camera-and-shape step and Table 4's multi-start kernel stage.
 
 Tolerances. The curvature of a quadratic along a direction is exact by a forward difference of
 gradients up to rounding: eps |g| / (h |d|) ~ 1e-16 / 1e-6 = 1e-10 relative for gradients of order one,
@@ -13,9 +13,13 @@ import pytest
 from conftest import project, random_rotation
 from scipy.spatial.transform import Rotation
 
-from nldr.experiments.table4 import joint_kernel_stage
 from nldr.kernels import d_max_width, d_med_width
-from nldr.nrsfm.joint_kernel import block_curvature, joint_energy, kernel_joint_cameras_shapes
+from nldr.nrsfm.joint_kernel import (
+    block_curvature,
+    joint_kernel_multistart,
+    kernel_energy,
+    solve_joint_kernel,
+)
 from nldr.nrsfm.layout import random_visibility_mask
 from nldr.nrsfm.metrics import center_per_frame
 
@@ -52,14 +56,13 @@ def test_block_curvature_of_a_quadratic_is_the_rayleigh_quotient_along_the_restr
     assert block_curvature(value_grad, v, np.where(block, 0.0, grad), block, 1e-6) == 0.0
 
 
-@pytest.mark.parametrize("precondition", [True, False])
-def test_every_stage_ends_no_higher_than_it_starts(precondition):
+def test_every_stage_ends_no_higher_than_it_starts():
     """Each stage starts where the previous ended; L-BFGS-B descends (converged or not: 300 iterations
     at most here), so the energy at a stage's end is at most the energy of the previous stage's end
     evaluated at this stage's rho (exact)."""
     W, mask, R0, X0 = scene(seed=3)
     gamma, tau = d_med_width(X0), 1e-3
-    res = kernel_joint_cameras_shapes(
+    res = solve_joint_kernel(
         W,
         mask,
         R0,
@@ -68,35 +71,30 @@ def test_every_stage_ends_no_higher_than_it_starts(precondition):
         tau=tau,
         rho0=0.1,
         rho_max=10.0,
-        precondition=precondition,
         max_inner=300,
     )
     assert res.rho_history.tolist() == pytest.approx([0.1, 1.0, 10.0])
-    assert res.stage_energy[0] <= joint_energy(W, mask, R0, X0, gamma=gamma, tau=tau, rho=0.1)
+    assert res.stage_energy[0] <= kernel_energy(W, mask, R0, X0, gamma=gamma, tau=tau, rho=0.1)
     # stage k's start is stage k-1's end; its energy at rho_k is reproduced by a fresh stage-k run
-    one = kernel_joint_cameras_shapes(
-        W, mask, R0, X0, gamma=gamma, tau=tau, rho0=0.1, rho_max=0.1, precondition=precondition, max_inner=300
-    )
+    one = solve_joint_kernel(W, mask, R0, X0, gamma=gamma, tau=tau, rho0=0.1, rho_max=0.1, max_inner=300)
     assert one.fun == res.stage_energy[0]  # same computation, same bits
-    assert res.stage_energy[1] <= joint_energy(W, mask, one.R, one.x, gamma=gamma, tau=tau, rho=1.0)
+    assert res.stage_energy[1] <= kernel_energy(W, mask, one.R, one.x, gamma=gamma, tau=tau, rho=1.0)
     assert np.allclose(res.R @ res.R.transpose(0, 2, 1), np.eye(2), atol=1e-12)
 
 
 def test_multistart_keeps_the_lowest_paper_energy_of_its_starts():
-    """joint_kernel_stage's kept energy is the minimum over the starts it documents, each run alone
+    """joint_kernel_multistart's kept energy is the minimum over the starts it documents, each run alone
     (exact: the same deterministic runs), never above the single full schedule, and its ``nit`` sums
     the iterations of every start of that width."""
     W, mask, R0, X0 = scene(seed=5)
     gammas = {"d_max": d_max_width(X0), "d_med": d_med_width(X0)}
     kw = dict(tau=1e-4, rho0=1e-2, rho_growth=10.0, rho_max=1.0)
-    out = joint_kernel_stage(W, mask, R0, X0, gammas, multistart=True, **kw)
-    single = joint_kernel_stage(W, mask, R0, X0, gammas, multistart=False, **kw)
+    out = joint_kernel_multistart(W, mask, R0, X0, gammas, multistart=True, **kw)
+    single = joint_kernel_multistart(W, mask, R0, X0, gammas, multistart=False, **kw)
 
     def run(width, R, X, rho0):
-        res = kernel_joint_cameras_shapes(
-            W, mask, R, X, gamma=gammas[width], tau=1e-4, rho0=rho0, rho_max=1.0
-        )
-        return res, joint_energy(W, mask, res.R, res.x, gamma=gammas[width], tau=1e-4, rho=1.0)
+        res = solve_joint_kernel(W, mask, R, X, gamma=gammas[width], tau=1e-4, rho0=rho0, rho_max=1.0)
+        return res, kernel_energy(W, mask, res.R, res.x, gamma=gammas[width], tau=1e-4, rho=1.0)
 
     first = {}
     for width in gammas:

@@ -14,15 +14,15 @@ from nldr.nrsfm import (
     OrthographicReprojection,
     e3d,
     initialize_cameras,
-    kernel_with_camera_refinement,
+    reconstruct,
+    reprojection_error,
     select_kernel,
     select_tnh_tau,
-    tnh_with_camera_refinement,
     trace_norm_heuristic,
     visibility_folds,
 )
-from nldr.nrsfm.rotations import quaternion_to_camera
-from nldr.nrsfm.selection import holdout_reprojection_error
+from nldr.nrsfm.camera_refinement import tnh_with_camera_refinement
+from nldr.nrsfm.rotations import quaternion_rotation
 from nldr.regularizer import minimize_regularized
 
 
@@ -30,6 +30,10 @@ from nldr.regularizer import minimize_regularized
 def one_blas_thread():
     with threadpool_limits(1):
         yield
+
+
+def holdout_reprojection_error(W, hidden, R, X):
+    return reprojection_error(W, hidden, R, X, mean=True)
 
 
 def synthetic_sequence(F=24, P=10, missing=0.3, noise=0.0, seed=0):
@@ -42,7 +46,7 @@ def synthetic_sequence(F=24, P=10, missing=0.3, noise=0.0, seed=0):
     t = np.linspace(0, 2 * np.pi, F)
     S = B[0] + np.sin(t)[:, None, None] * B[1] + np.cos(2 * t)[:, None, None] * B[2]  # (F, 3, P)
     axis = np.stack([np.cos(t / 2), 0.3 * np.sin(t), np.sin(t / 2), 0.2 * np.ones(F)], axis=1)
-    R = quaternion_to_camera(axis / np.linalg.norm(axis, axis=1, keepdims=True))
+    R = quaternion_rotation(axis / np.linalg.norm(axis, axis=1, keepdims=True))[0][:, :2]
     W = (R @ S).reshape(F, 2 * P) + noise * rng.normal(size=(F, 2 * P))
     mask = rng.random((F, P)) >= missing
     return W, R, S.reshape(F, 3 * P), mask
@@ -243,23 +247,26 @@ def test_tnh_scores_are_cold_start_fold_solves_and_cv_beats_an_extreme_tau():
     extreme = tnh_with_camera_refinement(W, mask, initialize_cameras(W, mask), 1000.0, **ALTERNATION)
     P = mask.shape[1]
     assert e3d(sel.result_.x, X_gt, P, align=True) < e3d(extreme.x, X_gt, P, align=True)
-    # the kernel stage after it: its folds start from the fold solves at tau_, its refit alternates
-    # with the camera LM from the refit
+    # the kernel stage after it: its folds start from the fold solves at tau_ and its refit from the
+    # refit, all Table 4's kernel stage (cameras and shapes jointly)
     ksel = select_kernel(
-        W, mask, tnh=sel, taus=[1e-4], width_multiples=[1.0], camera_options={"max_outer": 3}, **SCHEDULE
+        W, mask, tnh=sel, taus=[1e-4], width_multiples=[1.0], camera_options={"multistart": False}, **SCHEDULE
     )
     assert ksel.folds_ is sel.folds_
-    by_hand = kernel_with_camera_refinement(
-        W,
-        mask,
-        sel.result_.R,
-        sel.result_.x,
-        gamma=d_med_width(sel.result_.x),
-        tau=1e-4,
-        max_outer=3,
-        **SCHEDULE,
+    gamma = d_med_width(sel.result_.x)
+    by_hand = reconstruct(
+        W, mask, prior="kernel", tau=1e-4, width=gamma, start=sel.result_, multistart=False, **SCHEDULE
     )
     np.testing.assert_array_equal(ksel.result_.x, by_hand.x)
+    np.testing.assert_array_equal(ksel.result_.R, by_hand.R)
+    hidden = sel.folds_[0]
+    fold = reconstruct(
+        W, mask & ~hidden, prior="kernel", tau=1e-4, width=d_med_width(sel.fold_results_[0].x),
+        start=sel.fold_results_[0], multistart=False, **SCHEDULE,
+    )  # fmt: skip
+    assert ksel.fold_scores_.iloc[0, 0] == pytest.approx(
+        holdout_reprojection_error(W, hidden, fold.R, fold.x), rel=1e-12
+    )
     with pytest.raises(ValueError, match="another mask"):
         select_kernel(W, mask & ~sel.folds_[0], tnh=sel)
 

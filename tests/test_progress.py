@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from nldr.nrsfm.unknown_cameras import tune_tau
+from nldr.experiments.table4 import tune_tau
 
 
 def test_tune_tau_verbose_prints_every_evaluation_and_changes_nothing(capsys):

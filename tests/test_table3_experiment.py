@@ -36,11 +36,12 @@ def test_stage_tolerances_reach_the_solver_and_are_validated(data_dir):
     iteration whenever tol >= 1 (an energy decrease never exceeds max(|E|, 1) for E >= 0): with
     tol = 1 every penalty stage stops after one iteration, which the default tolerance does not."""
     seq = load_mocap("pickup", data_dir).subsample(10)
-    kw = dict(missing_fraction=0.0, seed=0, widths=("d_med",), rho0=1e-3, rho_max=1e-1)
-    loose = run_sequence(seq, tol=1.0, **kw).results["Kernel d_med"]
+    kw = dict(missing_fraction=0.0, seed=0, widths=("d_med",))
+    schedule = dict(rho0=1e-3, rho_max=1e-1)
+    loose = run_sequence(seq, regularizer={**schedule, "tol": 1.0}, **kw).results["Kernel d_med"]
     assert loose.nit == loose.n_stages == 3
-    default = run_sequence(seq, **kw).results["Kernel d_med"]
+    default = run_sequence(seq, regularizer=schedule, **kw).results["Kernel d_med"]
     assert default.nit > 10 * default.n_stages
     for key in ("tol", "gtol", "stage_tol"):
         with pytest.raises(ValueError, match=key):
-            run_sequence(seq, **{**kw, key: -1.0})
+            run_sequence(seq, regularizer={**schedule, key: -1.0}, **kw)

@@ -85,12 +85,11 @@ def test_kernel_solve_in_camera_frame_reaches_the_same_energy_in_fewer_iteration
     the solve on the shapes, which at this tolerance stops short of the minimum (relative 1e-6 is
     above the spread of the L-BFGS end points measured on Table 3's jobs, about 1e-8)."""
     seq, _, _ = problem
-    kw = dict(
-        missing_fraction=0.5, seed=2016, widths=("d_med",), rho0=1e-3, rho_max=1e-2, tol=1e-12, gtol=1e-10,
-        scale=1.0,  # Table 3's: tol and gtol in the data's units
-    )
-    plain = run_sequence(seq, **kw).results["Kernel d_med"]
-    fast = run_sequence(seq, depth_scale=100.0, **kw)
+    kw = dict(missing_fraction=0.5, seed=2016, widths=("d_med",))
+    # Table 3's scale 1: tol and gtol in the data's units
+    schedule = dict(rho0=1e-3, rho_max=1e-2, tol=1e-12, gtol=1e-10, scale=1.0)
+    plain = run_sequence(seq, regularizer=schedule, **kw).results["Kernel d_med"]
+    fast = run_sequence(seq, regularizer={**schedule, "depth_scale": 100.0}, **kw)
     res = fast.results["Kernel d_med"]
     assert res.success and plain.success
     assert res.fun <= plain.fun * (1 + 1e-6)

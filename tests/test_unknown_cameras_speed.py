@@ -1,6 +1,6 @@
 """The fast TNH-with-estimated-cameras (Table 4) keeps the results of the first implementation.
 
-Three changes make :func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement` faster, each checked
+Three changes make :func:`~nldr.nrsfm.camera_refinement.tnh_with_camera_refinement` faster, each checked
 here against the slow-but-plain path it replaces:
 
 1. Singular value thresholding through the Gram matrix of the short side
@@ -31,13 +31,13 @@ import numpy as np
 import pytest
 from conftest import random_rotation
 
-import nldr.nrsfm.unknown_cameras as uc
+import nldr.nrsfm.camera_refinement as cr
 from nldr.nrsfm import trace_norm_heuristic
-from nldr.nrsfm.camera_refinement import lm_normal_equations
+from nldr.nrsfm.camera_refinement import lm_normal_equations, tnh_alternation, tnh_with_camera_refinement
 from nldr.nrsfm.factorization import initialize_cameras
 from nldr.nrsfm.fista import fista_tnh
 from nldr.nrsfm.metrics import center_per_frame, e3d, procrustes_rotation
-from nldr.nrsfm.rotations import quaternion_to_camera_batch
+from nldr.nrsfm.rotations import quaternion_rotation
 from nldr.nrsfm.svt import (
     GRAM_SAFETY,
     soft_threshold_singular_values,
@@ -135,7 +135,7 @@ def test_lm_normal_equations_match_the_explicit_jacobian(rng):
     """J^T J and -J^T r from the 3x3 / 3x2 summaries equal the sums over the explicit (2, P, 4) Jacobian."""
     F, P = 7, 11
     q = rng.standard_normal((F, 4))
-    _, J = quaternion_to_camera_batch(q / np.linalg.norm(q, axis=1, keepdims=True), True)
+    J = quaternion_rotation(q / np.linalg.norm(q, axis=1, keepdims=True), jacobian=True)[1][:, :2]
     S = rng.standard_normal((F, 3, P))
     mask = rng.random((F, P)) > 0.3
     E = rng.standard_normal((F, 2, P)) * mask[:, None, :]
@@ -174,10 +174,10 @@ def test_adaptive_shape_tolerance_keeps_the_converged_result(tau, seed, monkeypa
         counts.append(out.nit)
         return out
 
-    monkeypatch.setattr(uc, "fista_tnh", counting)
+    monkeypatch.setattr(cr, "fista_tnh", counting)
     ref = tnh_with_camera_refinement_reference(W, mask, R0, tau)
     ref_iterations, counts[:] = sum(counts), []
-    fast = uc.tnh_with_camera_refinement(W, mask, R0, tau)
+    fast = tnh_with_camera_refinement(W, mask, R0, tau)
     fast_iterations = sum(counts)
     tight = tnh_with_camera_refinement_reference(W, mask, R0, tau, tol=1e-13)
     assert ref.success and fast.success and tight.success
@@ -201,27 +201,26 @@ def test_adaptive_shape_tolerance_keeps_the_converged_result(tau, seed, monkeypa
     assert fast_iterations < 0.6 * ref_iterations
 
 
-def test_shape_tol_ratio_zero_is_the_fixed_tolerance_alternation():
-    """shape_tol_ratio=0 runs every shape step to shape_tol: the reference up to the thresholding."""
+def test_fixed_shape_tolerance_is_the_reference_up_to_the_thresholding():
+    """The alternation's shape steps at the fixed tolerance 1e-12 without carried momentum: the
+    reference up to the thresholding (Gram matrix against a full SVD, equal to rounding)."""
     W, mask, _, _ = scene(n_frames=8, n_points=10, seed=4)
     R0 = initialize_cameras(W, mask)
     ref = tnh_with_camera_refinement_reference(W, mask, R0, 3.0)
-    fixed = uc.tnh_with_camera_refinement(W, mask, R0, 3.0, shape_tol_ratio=0.0, shape_momentum=False)
+    fixed = tnh_alternation(
+        W, mask, R0, 3.0, 20_000, 1e-8, 10, None, shape_tol=(1e-12, 0.0, 1e-12), momentum=False
+    )
     assert fixed.nit == ref.nit
     np.testing.assert_allclose(fixed.energy_history, ref.energy_history, rtol=1e-9)
 
 
-def test_tnh_with_camera_refinement_validates_the_shape_options():
+def test_tnh_with_camera_refinement_validates():
     W, mask, _, _ = scene(n_frames=6, n_points=8, seed=5)
     R0 = initialize_cameras(W, mask)
     for kwargs, name in [
-        ({"shape_tol": 0.0}, "shape_tol"),
-        ({"shape_tol_ratio": -1.0}, "shape_tol_ratio"),
-        ({"shape_tol_max": np.nan}, "shape_tol_max"),
-        ({"shape_max_iter": 0}, "shape_max_iter"),
         ({"tau": 0.0}, "tau"),
-        ({"svt": "gram"}, "svt"),
+        ({"tau": 1.0, "window": 0}, "window"),
+        ({"tau": 1.0, "X0": W}, "X0"),
     ]:
-        args = {"tau": 1.0, **kwargs}
         with pytest.raises(ValueError, match=name):
-            uc.tnh_with_camera_refinement(W, mask, R0, **args)
+            tnh_with_camera_refinement(W, mask, R0, **kwargs)

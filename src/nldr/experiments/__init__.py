@@ -29,6 +29,7 @@ _REGISTRY = {
     "selection_full": ("selection", "SelectionFull"),
     "selection_nrsfm": ("selection_nrsfm", "SelectionNRSfM"),
     "robust": ("robust", "Robust"),
+    "robust_nrsfm": ("robust_nrsfm", "RobustNRSfM"),
     "out_of_sample": ("out_of_sample", "OutOfSample"),
     "denoising": ("denoising", "Denoising"),
 }

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from ..datasets import load_mocap
-from ..kernels import d_max_width, d_med_width
+from ..nrsfm.reconstruct import WIDTH_RULES
 from .base import Experiment, Job, summary_stats
 
 __all__ = [
@@ -25,8 +25,9 @@ __all__ = [
     "MocapExperiment",
 ]
 
-#: Kernel-width criteria: name -> gamma of the RBF kernel from the TNH shapes (samples as rows).
-WIDTHS: dict[str, Callable[[np.ndarray], float]] = {"d_max": d_max_width, "d_med": d_med_width}
+#: Kernel-width criteria: name -> gamma of the RBF kernel from the TNH shapes (samples as rows); the
+#: library's :data:`nldr.nrsfm.reconstruct.WIDTH_RULES`.
+WIDTHS: dict[str, Callable[[np.ndarray], float]] = WIDTH_RULES
 #: Method labels in the paper's column order.
 METHODS = ("TNH", "Kernel d_max", "Kernel d_med")
 #: The paper's sequences, in its row order.

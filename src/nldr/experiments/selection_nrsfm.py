@@ -10,9 +10,9 @@ mocap sequence, one setting and one mask, with the masks, frames and solver sett
   numbers, recomputed on the same mask: the same calls, the same bits) and ``Kernel (CV)``, tau and
   width chosen by :func:`~nldr.nrsfm.select_kernel` with the known cameras.
 - Table 4: ``TNH (CV tau)``: tau chosen by :func:`~nldr.nrsfm.select_tnh_tau` (then, with
-  ``table4.tnh.camera_search``, :func:`~nldr.nrsfm.tnh_camera_search` at that tau, as Table 4 does at
-  its tau*); the kernel stage at
-  the paper's values after it (``Kernel d_max/d_med after TNH (CV tau)``); and ``Kernel (CV) after
+  ``table4.tnh.camera_search``, the camera search at that tau, as Table 4 does at its tau*); Table 4's
+  kernel stage (:func:`~nldr.nrsfm.reconstruct`, cameras and shapes jointly) at the paper's values
+  after it (``Kernel d_max/d_med after TNH (CV tau)``); and ``Kernel (CV) after
   TNH (CV tau)``, every knob from the tracks. Table 4's own runs give ``TNH (oracle tau*)`` (tau by
   Brent's search on e3D against ground truth, the paper's protocol: an **oracle**) and the kernel
   stage after it; :meth:`SelectionNRSfM.table` gathers them for the masks this experiment ran.
@@ -27,28 +27,15 @@ e3D as in each table (Table 4: after one global orthogonal alignment).
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from .. import paper as paper_numbers
-from ..nrsfm import (
-    CameraFrameVariables,
-    OrthographicReprojection,
-    e3d,
-    kernel_with_camera_refinement,
-    random_visibility_mask,
-    select_kernel,
-    select_tnh_tau,
-    stack_to_rows,
-    tnh_camera_search,
-    trace_norm_heuristic,
-)
+from ..nrsfm import e3d, random_visibility_mask, reconstruct, select_kernel, select_tnh_tau, stack_to_rows
 from ..nrsfm.kernel_selection import PAPER_KERNEL
 from ..paper import paper_frame
-from ..regularizer import minimize_regularized
 from ..tables import attach_paper
 from .base import Job, JobOutput, summary_stats
 from .mocap import WIDTHS, MocapExperiment, every_nth_frame, setting_label, summarise_e3d
@@ -164,34 +151,26 @@ class SelectionNRSfM(MocapExperiment):
     @staticmethod
     def _run_table3(W2d, R, mask, t, folds, kernel_grid, record, arrays, oracle):
         tnh_options = {k: v for k, v in t["tnh"].items() if k != "solver"}  # ADMM exact fit, as Table 3
-        schedule = dict(t["regularizer"])
-        depth_scale = schedule.pop("depth_scale", None)  # Table 3's camera-frame L-BFGS, as run_sequence
-        stopping = ("max_inner", "tol", "gtol", "stage_tol", "scale")  # solver options, as run_sequence's
-        schedule["options"] = {key: schedule.pop(key) for key in stopping if key in schedule}
-        solve = dict(schedule)
-        if depth_scale is not None:
-            solve["variables"] = CameraFrameVariables(R, mask, depth_scale)
-        term = OrthographicReprojection(W2d, R, mask)
-        X_tnh = trace_norm_heuristic(W2d, R, mask, **tnh_options).x
+        schedule = dict(t["regularizer"])  # with Table 3's depth_scale (camera-frame L-BFGS)
+        tnh = reconstruct(W2d, mask, cameras=R, prior="tnh", **tnh_options)
+
+        def solve(gamma, tau):
+            return reconstruct(
+                W2d, mask, cameras=R, prior="kernel", tau=tau, width=gamma, start=tnh, **schedule
+            )
+
         solve_cpu = []  # one solve: the kernel method at the paper's values
         for width in t["widths"]:
-            gamma = WIDTHS[width](X_tnh)
             start = time.process_time()
-            res = minimize_regularized(term, X_tnh, gamma=gamma, tau=t["tau"], **solve)
+            res = solve(WIDTHS[width](tnh.x), t["tau"])
             solve_cpu.append(time.process_time() - start)
-            record(f"Kernel {width}", res.x, solve_cpu[-1], False, tau=t["tau"], gamma=gamma)
+            record(f"Kernel {width}", res.x, solve_cpu[-1], False, tau=t["tau"], gamma=res.gamma)
         start = time.process_time()
+        depth_scale = schedule.pop("depth_scale", None)
         sel = select_kernel(
-            W2d,
-            mask,
-            R=R,
-            tnh_options=tnh_options,
-            X_start=X_tnh,
-            depth_scale=depth_scale,
-            **folds,
-            **kernel_grid,
-            **schedule,
-        )
+            W2d, mask, R=R, tnh_options=tnh_options, X_start=tnh.x, depth_scale=depth_scale,
+            **folds, **kernel_grid, **schedule,
+        )  # fmt: skip
         cpu = time.process_time() - start
         record(
             CV_KERNEL,
@@ -205,51 +184,40 @@ class SelectionNRSfM(MocapExperiment):
         )
         _curve(arrays, "kernel", sel.cv_results_)
         if oracle is not None:
-            oracle(
-                X_tnh,
-                lambda gamma, tau: minimize_regularized(term, X_tnh, gamma=gamma, tau=tau, **solve).x,
-                False,
-            )
+            schedule["depth_scale"] = depth_scale
+            oracle(tnh.x, lambda gamma, tau: solve(gamma, tau).x, False)
 
     @staticmethod
     def _run_table4(W2d, mask, t, settings, folds, kernel_grid, record, arrays, oracle):
-        tnh_cfg, kernel_cfg = dict(t["tnh"]), dict(t["kernel"])
-        alternation = dict(max_outer=tnh_cfg.get("max_outer", 20_000), tol=tnh_cfg.get("tol", 1e-8))
-        camera = dict(
-            max_outer=kernel_cfg.pop("max_outer", 20),
-            tol=kernel_cfg.pop("tol", 1e-4),
-            camera_atol_deg=kernel_cfg.pop("camera_atol_deg", None),
-        )
+        tnh_cfg, kernel = dict(t["tnh"]), dict(t["kernel"])
+        alternation = {k: tnh_cfg[k] for k in ("max_outer", "tol") if k in tnh_cfg}
         g = settings["tnh_grid"]
         taus = np.logspace(g["log10_tau"]["min"], g["log10_tau"]["max"], g["log10_tau"]["num"])
         start = time.process_time()
-        sel = select_tnh_tau(W2d, mask, taus=taus, **folds, **alternation)
-        if tnh_cfg.get("camera_search", False):  # as Table 4 at its tau*: the same problem, searched better
-            found = tnh_camera_search(W2d, mask, sel.result_, sel.tau_, **alternation)
-            sel = replace(sel, result_=found.best)  # the kernel selection's refit starts from it
+        # as Table 4 at its tau*: the camera search at the chosen tau (the same problem, searched better)
+        sel = select_tnh_tau(
+            W2d, mask, taus=taus, camera_search=tnh_cfg.get("camera_search", False), **folds, **alternation
+        )
         cpu = time.process_time() - start
         tnh = sel.result_
         # one solve = the refit (one TNH alternation at tau_, one evaluation of Table 4's oracle search)
         record(CV_TNH, tnh.x, cpu, True, tau=sel.tau_, solves=cpu / sel.refit_time_)
         _curve(arrays, "tnh", sel.cv_results_)
-        solve_cpu = []  # one solve: the kernel/camera alternation at the paper's values
+
+        def solve(gamma, tau):  # Table 4's kernel stage
+            return reconstruct(W2d, mask, prior="kernel", tau=tau, width=gamma, start=tnh, **kernel)
+
+        solve_cpu = []  # one solve: Table 4's kernel stage at the paper's values
         for width in t["widths"]:
-            gamma = WIDTHS[width](tnh.x)
             start = time.process_time()
-            alt = kernel_with_camera_refinement(
-                W2d, mask, tnh.R, tnh.x, gamma=gamma, tau=t["tau"], **camera, **kernel_cfg
-            )
+            res = solve(width, t["tau"])
             solve_cpu.append(time.process_time() - start)
             record(
-                _after(f"Kernel {width}", CV_TNH),
-                alt.x,
-                solve_cpu[-1],
-                True,
-                tau=t["tau"],
-                gamma=gamma,
+                _after(f"Kernel {width}", CV_TNH), res.x, solve_cpu[-1], True, tau=t["tau"], gamma=res.gamma
             )
         start = time.process_time()
-        ksel = select_kernel(W2d, mask, tnh=sel, camera_options=camera, **kernel_grid, **kernel_cfg)
+        multistart = {"multistart": kernel.pop("multistart", True)}
+        ksel = select_kernel(W2d, mask, tnh=sel, camera_options=multistart, **kernel_grid, **kernel)
         cpu = time.process_time() - start
         record(
             _after(CV_KERNEL, CV_TNH),
@@ -263,13 +231,8 @@ class SelectionNRSfM(MocapExperiment):
         )
         _curve(arrays, "kernel", ksel.cv_results_)
         if oracle is not None:
-
-            def solve(gamma, tau):
-                return kernel_with_camera_refinement(
-                    W2d, mask, tnh.R, tnh.x, gamma=gamma, tau=tau, **camera, **kernel_cfg
-                ).x
-
-            oracle(tnh.x, solve, True, after=CV_TNH)
+            kernel.update(multistart)
+            oracle(tnh.x, lambda gamma, tau: solve(gamma, tau).x, True, after=CV_TNH)
 
     # -- the table -----------------------------------------------------------------------------
     def summarise(self, runs):

@@ -31,17 +31,9 @@ from threadpoolctl import threadpool_limits
 from .. import paper as paper_numbers
 from .._validation import check_count, check_positive
 from ..datasets import load_mocap
-from ..nrsfm import (
-    CameraFrameVariables,
-    OrthographicReprojection,
-    e3d,
-    random_visibility_mask,
-    stack_to_rows,
-    trace_norm_heuristic,
-)
+from ..nrsfm import e3d, random_visibility_mask, reconstruct, stack_to_rows
 from ..paper import paper_frame
 from ..plotting import figure1
-from ..regularizer import minimize_regularized
 from ..tables import attach_paper
 from .base import JobOutput
 from .mocap import (
@@ -105,11 +97,11 @@ class Table3Run:
     results: dict = field(default_factory=dict)
 
 
-def _tnh_call_options(tnh_options: Mapping | None) -> tuple[str, dict]:
-    """Split the pipeline's ``tnh`` mapping into (solver, solver_options).
+def _tnh_call_options(tnh_options: Mapping | None) -> dict:
+    """The pipeline's ``tnh`` mapping as TNH's options of :func:`~nldr.nrsfm.reconstruct`.
 
-    ``eps`` is a shorthand for SCS's ``eps_abs = eps_rel = eps``; any other key is passed to the
-    solver as is (e.g. ``max_iters``).
+    ``solver`` is "ADMM" (default) or a cvxpy conic solver; ``eps`` is a shorthand for SCS's
+    ``eps_abs = eps_rel = eps``; any other key is passed to the solver as is (e.g. ``max_iters``).
     """
     options = dict(tnh_options or {})
     solver = str(options.pop("solver", "ADMM")).upper()
@@ -119,16 +111,18 @@ def _tnh_call_options(tnh_options: Mapping | None) -> tuple[str, dict]:
             raise ValueError(f"tnh_options['eps'] is an SCS tolerance; solver {solver!r} does not take it")
         eps = check_positive(eps, "tnh_options['eps']")
         options.update(eps_abs=eps, eps_rel=eps)
-    return solver, options
+    if solver == "ADMM":
+        return {"method": "admm", **options}
+    return {"method": "cvxpy", "solver": solver, "solver_options": options}
 
 
 def _kernel_solve(job, worker: bool = False):
-    """One kernel-regularizer solve -> (gamma, result, wall seconds, CPU seconds)."""
-    data_term, X0, gamma, options = job
+    """One kernel reconstruction -> (result, wall seconds, CPU seconds)."""
+    args, options = job
     wall0, cpu0 = time.perf_counter(), time.process_time()
     with threadpool_limits(1 if worker else None):
-        res = minimize_regularized(data_term, X0, gamma=gamma, **options)
-    return gamma, res, time.perf_counter() - wall0, time.process_time() - cpu0
+        res = reconstruct(*args, prior="kernel", **options)
+    return res, time.perf_counter() - wall0, time.process_time() - cpu0
 
 
 def _kernel_solve_in_worker(job):
@@ -140,18 +134,9 @@ def run_sequence(
     *,
     missing_fraction: float,
     seed: int,
-    tau: float = 1e-4,
+    tau: float | None = None,
     widths=("d_max", "d_med"),
-    rho0: float = 1e-3,
-    rho_growth: float = 10.0,
-    rho_max: float = 10.0,
-    center: bool = False,
-    max_inner: int | None = None,
-    tol: float | None = None,
-    gtol: float | None = None,
-    stage_tol: float | None = None,
-    scale: float | None = None,
-    depth_scale: float | None = None,
+    regularizer: Mapping | None = None,
     tnh_options: Mapping | None = None,
     progress: Callable[[str], None] | None = None,
     n_jobs: int = 1,
@@ -167,30 +152,18 @@ def run_sequence(
         Fraction of (frame, point) observations removed; 0 means all observed (no mask is drawn).
     seed : int
         Seed of :func:`~nldr.nrsfm.random_visibility_mask` (recorded, unused for full data).
-    tau : float > 0, default 1e-4
-        Trace-norm weight of the kernel regularizer (paper).
+    tau : float > 0, optional
+        Trace-norm weight of the kernel regularizer (default: the paper's 1e-4).
     widths : sequence of {"d_max", "d_med"}
         Kernel-width criteria to run, each on the TNH shapes.
-    rho0, rho_growth, rho_max : float
-        Penalty schedule of :func:`~nldr.regularizer.minimize_regularized`; the defaults (1e-3 to 10,
-        x10) are the ones measured in docs/REPRODUCTION.md#table-3-solver.
-    center : bool, default False
-        Double-centre the kernel.
-    max_inner : int, optional
-        Per-stage iteration limit of the regularizer (its default when None).
-    tol, gtol, stage_tol : float, optional
-        Stopping tolerances of the regularizer's L-BFGS stages
-        (:func:`~nldr.regularizer.minimize_regularized`; its defaults when None). Its ``tol`` is
-        relative to ``max(|E|, scale^2)``, so with ``scale`` 1 and the energies of these sequences
-        (about 1e-3: tau = 1e-4 times the trace norm of K^(1/2)) it acts as an absolute test a
-        thousand times looser than its nominal value (docs/REPRODUCTION.md#table-3-solver).
-    scale : float > 0, optional
-        The regularizer's option ``scale``: the unit of length of those tests (its default when None,
-        sqrt(rho0)). Table 3 sets 1: its ``tol`` and ``gtol`` were tuned in the data's units.
-    depth_scale : float > 0, optional
-        Run the kernel stage's L-BFGS in :class:`CameraFrameVariables` with this scale of the
-        directions the data term leaves free (same minimisers, far fewer iterations: 100 is the
-        measured choice, docs/REPRODUCTION.md#table-3-solver). None (default): L-BFGS on the shapes.
+    regularizer : mapping, optional
+        The kernel method's options of :func:`~nldr.nrsfm.reconstruct` with known cameras: the penalty
+        schedule ``rho0, rho_growth, rho_max``, ``center``, the L-BFGS tolerances ``tol, gtol,
+        stage_tol`` (:func:`~nldr.regularizer.minimize_regularized`; its ``tol`` is relative to
+        ``max(|E|, 1)``, so with the energies of these sequences, about 1e-3, it acts as an absolute
+        test a thousand times looser than its nominal value) and ``depth_scale`` (L-BFGS in
+        :class:`~nldr.nrsfm.CameraFrameVariables`: same minimisers, far fewer iterations; 100 is the
+        measured choice). docs/REPRODUCTION.md#table-3-solver has the measurements.
     tnh_options : mapping, optional
         ``solver`` (default "ADMM"), ``eps`` (SCS's eps_abs = eps_rel) and further solver options for
         :func:`~nldr.nrsfm.trace_norm_heuristic` (``ADMM``: its options; else a cvxpy conic solver
@@ -224,51 +197,36 @@ def run_sequence(
     unknown = [w for w in widths if w not in WIDTHS]
     if unknown or not widths:
         raise ValueError(f"widths must be a non-empty subset of {tuple(WIDTHS)}; got {widths!r}")
-    solver, solver_options = _tnh_call_options(tnh_options)
+    tnh_call = _tnh_call_options(tnh_options)
     n_jobs = check_count(n_jobs, "n_jobs")
-    regularizer_options = dict(
-        tau=check_positive(tau, "tau"),
-        center=bool(center),
-        rho0=rho0,
-        rho_growth=rho_growth,
-        rho_max=rho_max,
-        options={} if max_inner is None else {"max_inner": max_inner},
-    )
-    for key, value in (("tol", tol), ("gtol", gtol), ("stage_tol", stage_tol), ("scale", scale)):
-        if value is not None:
-            regularizer_options["options"][key] = check_positive(value, key)
 
     W2d = stack_to_rows(seq.W, dim=2)
     X_gt = stack_to_rows(seq.S, dim=3)
     F, P = W2d.shape[0], W2d.shape[1] // 2
     mask = np.ones((F, P), dtype=bool) if frac == 0 else random_visibility_mask(F, P, frac, int(seed))
-    data_term = OrthographicReprojection(W2d, seq.R, mask)
-    if depth_scale is not None:
-        regularizer_options["variables"] = CameraFrameVariables(seq.R, mask, depth_scale)
-    n_obs = max(data_term.n_residuals, 1)
+    n_obs = max(2 * int(mask.sum()), 1)
 
     rows, shapes, results = [], {}, {}
 
-    def record(label, X, gamma, wall, cpu, converged, n_iter, message, result, energy=np.nan):
-        r = data_term.residuals(X)
+    def record(label, rec, wall, cpu, message, energy=np.nan):
         row = {
             "sequence": seq.name,
             "missing_fraction": frac,
             "seed": int(seed),
             "method": label,
-            "e3d": e3d(X, X_gt, P),
-            "gamma": gamma,
+            "e3d": e3d(rec.x, X_gt, P),
+            "gamma": rec.gamma,
             "seconds": wall,
             "cpu_seconds": cpu,
-            "converged": bool(converged),
-            "n_iter": int(n_iter),
-            "reprojection_rms": float(np.sqrt(r @ r / n_obs)),
+            "converged": bool(rec.success),
+            "n_iter": int(rec.nit),
+            "reprojection_rms": float(np.sqrt(rec.reprojection / n_obs)),
             "energy": float(energy),
             "message": message,
         }
         rows.append(row)
-        shapes[label] = X
-        results[label] = result
+        shapes[label] = rec.x
+        results[label] = rec.solver
         if progress is not None:
             progress(
                 f"{seq.name} {setting_label(frac)} seed={seed} {label:13s} e3d={row['e3d']:.4f} "
@@ -276,32 +234,19 @@ def run_sequence(
             )
 
     wall0, cpu0 = time.perf_counter(), time.process_time()
-    if solver == "ADMM":
-        tnh = trace_norm_heuristic(W2d, seq.R, mask, method="admm", **solver_options)
-    else:  # a cvxpy conic solver
-        tnh = trace_norm_heuristic(
-            W2d, seq.R, mask, method="cvxpy", solver=solver, solver_options=solver_options
-        )
-    record(
-        "TNH",
-        tnh.x,
-        np.nan,
-        time.perf_counter() - wall0,
-        time.process_time() - cpu0,
-        tnh.success,
-        tnh.nit,
-        f"{tnh.solver} exact fit: {tnh.message}",
-        tnh,
-    )
+    tnh = reconstruct(W2d, mask, cameras=seq.R, prior="tnh", **tnh_call)
+    wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
+    record("TNH", tnh, wall, cpu, f"{tnh.solver.solver} exact fit: {tnh.message}")
 
-    jobs = [(data_term, tnh.x, WIDTHS[width](tnh.x), regularizer_options) for width in widths]
+    options = dict(tau=tau, start=tnh, **dict(regularizer or {}))
+    jobs = [((W2d, mask), dict(cameras=seq.R, width=width, **options)) for width in widths]
     if n_jobs > 1 and len(jobs) > 1:
         with ProcessPoolExecutor(max_workers=min(n_jobs, len(jobs))) as pool:
             solved = list(pool.map(_kernel_solve_in_worker, jobs))
     else:
         solved = [_kernel_solve(job) for job in jobs]
-    for width, (gamma, res, wall, cpu) in zip(widths, solved, strict=True):
-        record(f"Kernel {width}", res.x, gamma, wall, cpu, res.success, res.nit, res.message, res, res.fun)
+    for width, (res, wall, cpu) in zip(widths, solved, strict=True):
+        record(f"Kernel {width}", res, wall, cpu, res.message, res.fun)
 
     return Table3Run(
         rows=pd.DataFrame(rows, columns=_ROW_COLUMNS),
@@ -340,10 +285,10 @@ class Table3(MocapExperiment):
             seed=job.params["seed"],
             tau=settings["tau"],
             widths=tuple(settings["widths"]),
-            tnh_options=dict(settings["tnh"]),
+            regularizer=settings["regularizer"],
+            tnh_options=settings["tnh"],
             progress=progress,
             n_jobs=threads,  # width criteria in parallel when the job has 2 threads (drink, every frame)
-            **dict(settings["regularizer"]),
         )
         recon = Reconstructions(shapes=run.shapes, mask=run.mask, ground_truth=run.ground_truth)
         return JobOutput(rows=run.rows, arrays=recon.to_arrays())

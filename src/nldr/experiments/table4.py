@@ -2,20 +2,19 @@
 
 One run = one subsampled CMU mocap sequence, one setting (full data or a fraction of the (frame,
 point) observations removed) and one seed of the visibility mask. The protocol of the paper's
-Section 4.3, with the choices of docs/REPRODUCTION.md#table-4-tnh:
+Section 4.3, with the choices of docs/REPRODUCTION.md#table-4-tnh, every reconstruction by
+:func:`nldr.nrsfm.reconstruct` with ``cameras="estimate"``:
 
-1. Cameras from rigid factorisation (:func:`~nldr.nrsfm.factorization.initialize_cameras`).
+1. Cameras from rigid factorisation (:func:`~nldr.nrsfm.initialize_cameras`).
 2. TNH with the cameras refined in alternation, run to convergence from the rigid cameras for each
-   tau (:func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement`); tau chosen by Brent's bounded
-   search on log10(tau) minimising e3D against ground truth (an oracle for the baseline, as in the
-   paper). With ``tnh.camera_search`` (config), the alternation at tau* is then continued from
-   re-seated cameras (:func:`~nldr.nrsfm.camera_search.tnh_camera_search`), kept only where TNH's
-   energy at tau* drops: a better optimiser of the same problem, chosen without ground truth.
+   tau; tau chosen by Brent's bounded search on log10(tau) minimising e3D against ground truth
+   (:func:`tune_tau`: an oracle for the baseline, as in the paper). With ``tnh.camera_search``
+   (config), the reconstruction at tau* also runs the camera search (cameras that break the motion
+   re-seated, kept only where TNH's energy at tau* drops: a better optimiser of the same problem,
+   chosen without ground truth).
 3. For each kernel-width criterion, from the tuned TNH's cameras and shapes: the regularizer of
    Algorithm 1 (tau = 1e-4, width from the TNH shapes) with the cameras and shapes optimised jointly
-   (config ``kernel_cameras: joint``, :func:`~nldr.nrsfm.joint_kernel.kernel_joint_cameras_shapes`;
-   with ``joint_multistart`` the lowest paper energy over the starts of :func:`joint_kernel_stage`)
-   or, as before issue 17, alternating with the camera LM (``kernel_cameras: alternate``).
+   (with ``kernel.multistart``, the lowest paper energy over several starts).
 4. e3D after one global orthogonal alignment per sequence (rotation and reflection), the benchmark's
    ``compareStructs.m`` procedure; the mean camera error in degrees before and after refinement.
 """
@@ -28,26 +27,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from scipy.optimize import minimize_scalar
 
 from .. import paper as paper_numbers
+from .._cv import say
 from .._validation import check_positive
-from ..nrsfm import (
-    camera_error,
-    e3d,
-    initialize_cameras,
-    joint_energy,
-    kernel_joint_cameras_shapes,
-    kernel_with_camera_refinement,
-    random_visibility_mask,
-    stack_to_rows,
-    tnh_camera_search,
-    tnh_with_camera_refinement,
-    tune_tau,
-)
+from ..nrsfm import camera_error, e3d, initialize_cameras, random_visibility_mask, reconstruct, stack_to_rows
+from ..result import SolverResult, status_from
 from .base import JobOutput
 from .mocap import WIDTHS, MocapExperiment, Reconstructions, check_sequence, every_nth_frame, setting_label
 
-__all__ = ["ROW_COLUMNS", "Table4Run", "run_sequence", "tuned_tnh", "joint_kernel_stage", "Table4"]
+__all__ = ["ROW_COLUMNS", "Table4Run", "TauSearchResult", "run_sequence", "tune_tau", "Table4"]
 
 ROW_COLUMNS = [
     "sequence",
@@ -99,23 +89,11 @@ def run_sequence(
     *,
     missing_fraction: float,
     seed: int,
-    log10_tau_bounds: tuple[float, float] = (-1.0, 2.0),
-    xatol: float = 0.02,
-    tnh_max_outer: int = 20_000,
-    tnh_tol: float = 1e-8,
-    tnh_search: bool = False,
-    tau: float = 1e-4,
+    tnh: Mapping | None = None,
+    kernel: Mapping | None = None,
+    tau: float | None = None,
     widths=("d_max", "d_med"),
-    kernel_max_outer: int = 20,
-    kernel_tol: float = 1e-4,
-    kernel_camera_atol_deg: float | None = None,
-    kernel_cameras: str = "alternate",
-    rho0: float = 1e-3,
-    rho_growth: float = 10.0,
-    rho_max: float = 10.0,
-    joint_multistart: bool = False,
     progress: Callable[[str], None] | None = None,
-    regularizer_options: Mapping | None = None,
 ) -> Table4Run:
     """Tuned TNH and the kernel regularizer with estimated cameras on one sequence and mask.
 
@@ -126,39 +104,17 @@ def run_sequence(
     missing_fraction : float in [0, 1)
     seed : int
         Seed of the visibility mask (recorded, unused for full data).
-    log10_tau_bounds, xatol
-        Brent search interval and tolerance on log10(tau) for TNH.
-    tnh_max_outer, tnh_tol
-        Alternation limits of :func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement`.
-    tnh_search : bool, default False
-        After the tau search, improve the alternation at tau* by
-        :func:`~nldr.nrsfm.camera_search.tnh_camera_search` (cameras that break the motion re-seated,
-        kept only where TNH's energy at tau* drops; no ground truth). The TNH row and the kernel
-        stage's start are then its result.
-    tau : float, default 1e-4
-        The kernel method's trace-norm weight (paper; not tuned).
+    tnh : mapping, optional
+        ``log10_tau_bounds`` and ``xatol`` of :func:`tune_tau`; the rest are TNH's options of
+        :func:`~nldr.nrsfm.reconstruct` (``max_outer``, ``tol``; ``camera_search`` runs at tau* only).
+    kernel : mapping, optional
+        The kernel method's options of :func:`~nldr.nrsfm.reconstruct` with estimated cameras
+        (``multistart``, the schedule ``rho0``, ``rho_growth``, ``rho_max``, ...).
+    tau : float, optional
+        The kernel method's trace-norm weight (default: the paper's, not tuned).
     widths : subset of {"d_max", "d_med"}
-    kernel_max_outer, kernel_tol
-        Outer iterations of the kernel shape step / camera LM alternation, and its stopping tolerance
-        (relative decrease of the reprojection error over 3 iterations).
-    kernel_camera_atol_deg : float > 0, optional
-        Also stop the kernel alternation once a camera step moved the cameras by less than this mean
-        angle (degrees): the next shape step would re-solve the same problem.
-    kernel_cameras : {"alternate", "joint"}, default "alternate"
-        "alternate": the kernel shape step alternating with the camera LM
-        (:func:`~nldr.nrsfm.unknown_cameras.kernel_with_camera_refinement`, ``kernel_max_outer``,
-        ``kernel_tol``, ``kernel_camera_atol_deg``); "joint": L-BFGS over cameras and shapes together
-        in every penalty stage (:func:`~nldr.nrsfm.joint_kernel.kernel_joint_cameras_shapes`; its
-        ``n_outer`` is the number of L-BFGS iterations).
-    rho0, rho_growth, rho_max
-        Penalty schedule of the regularizer (as for Table 3).
-    joint_multistart : bool, default False
-        With ``kernel_cameras="joint"``: keep, per width, the lowest paper energy among the starts of
-        :func:`joint_kernel_stage` (False: the full schedule from the TNH solution only).
     progress : callable, optional
         Receives one line per finished step.
-    regularizer_options : mapping, optional
-        Further keyword arguments of :func:`~nldr.regularizer.minimize_regularized`.
 
     Returns
     -------
@@ -171,10 +127,12 @@ def run_sequence(
     widths = tuple(widths)
     if not widths or any(w not in WIDTHS for w in widths):
         raise ValueError(f"widths must be a non-empty subset of {tuple(WIDTHS)}; got {widths!r}")
-    tau = check_positive(tau, "tau")
-    if kernel_cameras not in ("alternate", "joint"):
-        raise ValueError(f"kernel_cameras must be 'alternate' or 'joint'; got {kernel_cameras!r}")
-    say = progress or (lambda line: None)
+    tnh, kernel = dict(tnh or {}), dict(kernel or {})
+    search_options = {"xatol": tnh.pop("xatol")} if "xatol" in tnh else {}
+    if "log10_tau_bounds" in tnh:
+        search_options["log10_bounds"] = tuple(tnh.pop("log10_tau_bounds"))
+    camera_search = tnh.pop("camera_search", False)
+    report = progress or (lambda line: None)
 
     W2d = stack_to_rows(seq.W, dim=2)
     X_gt = stack_to_rows(seq.S, dim=3)
@@ -182,111 +140,64 @@ def run_sequence(
     mask = np.ones((F, P), dtype=bool) if frac == 0 else random_visibility_mask(F, P, frac, int(seed))
     R0 = initialize_cameras(W2d, mask)
     cam0 = camera_error(R0, seq.R)
-    say(f"{seq.name} {setting_label(frac)} seed={seed}: rigid cameras, mean error {cam0:.2f} deg")
-
+    report(f"{seq.name} {setting_label(frac)} seed={seed}: rigid cameras, mean error {cam0:.2f} deg")
     rows, shapes, cameras = [], {}, {"rigid": R0}
 
-    def record(label, X, R, tau_value, gamma, n_outer, seconds, converged, message, energy=np.nan):
+    def record(label, rec, seconds, message, energy=np.nan):
         row = {
             "sequence": seq.name,
             "missing_fraction": frac,
             "seed": int(seed),
             "method": label,
-            "e3d": e3d(X, X_gt, P, align=True),
-            "tau": tau_value,
-            "gamma": gamma,
+            "e3d": e3d(rec.x, X_gt, P, align=True),
+            "tau": rec.tau,
+            "gamma": rec.gamma,
             "camera_error_init": cam0,
-            "camera_error": camera_error(R, seq.R),
-            "n_outer": int(n_outer),
+            "camera_error": camera_error(rec.R, seq.R),
+            "n_outer": int(rec.nit),
             "seconds": seconds,
-            "converged": bool(converged),
+            "converged": bool(rec.success),
             "energy": energy,
             "message": message,
         }
         rows.append(row)
-        shapes[label], cameras[label] = X, R
-        say(
+        shapes[label], cameras[label] = rec.x, rec.R
+        report(
             f"{seq.name} {setting_label(frac)} seed={seed} {label:13s} e3d={row['e3d']:.4f} "
-            f"camera error {row['camera_error']:.2f} deg, {n_outer} outer iterations, {seconds:.1f}s"
+            f"camera error {row['camera_error']:.2f} deg, {rec.nit} outer iterations, {seconds:.1f}s"
         )
 
     start = time.perf_counter()
-    best, search = tuned_tnh(
-        W2d,
-        mask,
-        R0,
-        X_gt,
-        log10_tau_bounds=log10_tau_bounds,
-        xatol=xatol,
-        max_outer=tnh_max_outer,
-        tol=tnh_tol,
-    )
-    searched = ""
-    if tnh_search:
-        found = tnh_camera_search(W2d, mask, best, search.tau, max_outer=tnh_max_outer, tol=tnh_tol)
-        searched = f"; camera search: {found.n_alternations} alternations, {found.message}"
-        best = found.best
-    record(
-        "TNH",
-        best.x,
-        best.R,
-        search.tau,
-        np.nan,
-        best.nit,
-        time.perf_counter() - start,
-        best.success,
-        f"tau* = {search.tau:.4g} after {search.nfev} evaluations; {best.message}{searched}",
-    )
+    solved = {}
 
-    schedule = dict(tau=tau, rho0=rho0, rho_growth=rho_growth, rho_max=rho_max, **(regularizer_options or {}))
-    if kernel_cameras == "joint":
-        start = time.perf_counter()
-        gammas = {width: WIDTHS[width](best.x) for width in widths}
-        joint = joint_kernel_stage(W2d, mask, best.R, best.x, gammas, multistart=joint_multistart, **schedule)
-        seconds = (time.perf_counter() - start) / len(widths)  # the starts are shared between the widths
-        for width in widths:
-            alt, energy = joint[width]
-            record(
-                f"Kernel {width}",
-                alt.x,
-                alt.R,
-                tau,
-                gammas[width],
-                alt.nit,
-                seconds,
-                alt.success,
-                alt.message,
-                energy,
-            )
-    for width in widths if kernel_cameras == "alternate" else ():
-        gamma = WIDTHS[width](best.x)
-        start = time.perf_counter()
-        alt = kernel_with_camera_refinement(
-            W2d,
-            mask,
-            best.R,
-            best.x,
-            gamma=gamma,
-            max_outer=kernel_max_outer,
-            tol=kernel_tol,
-            camera_atol_deg=kernel_camera_atol_deg,
-            **schedule,
-        )
-        # the paper's energy at the last penalty weight, comparable between the two camera schemes
-        energy = joint_energy(W2d, mask, alt.R, alt.x, gamma=gamma, tau=tau, rho=rho_max)
-        record(
-            f"Kernel {width}",
-            alt.x,
-            alt.R,
-            tau,
-            gamma,
-            alt.nit,
-            time.perf_counter() - start,
-            alt.success,
-            alt.message,
-            energy,
-        )
+    def tnh_error(t):
+        solved[t] = reconstruct(W2d, mask, prior="tnh", tau=t, initial_cameras=R0, **tnh)
+        return e3d(solved[t].x, X_gt, P, align=True)
 
+    search = tune_tau(tnh_error, **search_options)
+    best = solved[search.tau]
+    if camera_search:  # the same alternation at tau*, then the search
+        best = reconstruct(
+            W2d, mask, prior="tnh", tau=search.tau, initial_cameras=R0, camera_search=camera_search, **tnh
+        )
+    message = f"tau* = {search.tau:.4g} after {search.nfev} evaluations; {best.message}"
+    record("TNH", best, time.perf_counter() - start, message)
+
+    kernels = {}
+    for width in widths:
+        if width in kernels:
+            continue
+        begin = time.perf_counter()
+        rec = reconstruct(W2d, mask, prior="kernel", tau=tau, width=width, start=best, **kernel)
+        found = {
+            width: rec,
+            **{w: r for w, r in rec.other_widths.items() if w in widths and w not in kernels},
+        }
+        seconds = (time.perf_counter() - begin) / len(found)  # the starts are shared between the widths
+        kernels.update({w: (r, seconds) for w, r in found.items()})
+    for width in widths:
+        rec, seconds = kernels[width]
+        record(f"Kernel {width}", rec, seconds, rec.message, rec.fun)
     return Table4Run(
         rows=pd.DataFrame(rows, columns=ROW_COLUMNS),
         shapes=shapes,
@@ -297,87 +208,99 @@ def run_sequence(
     )
 
 
-def joint_kernel_stage(
-    W2d, mask, R0, X0, gammas, *, tau, rho0, rho_growth, rho_max, multistart=True, **options
-):
-    """Table 4's kernel stage with cameras and shapes optimised jointly, for every width.
+@dataclass(kw_only=True, repr=False)
+class TauSearchResult(SolverResult):
+    """Result of :func:`tune_tau` (a :class:`~nldr.result.SolverResult`).
 
-    The energy (1) of :mod:`~nldr.nrsfm.joint_kernel` has several local minima (per-frame depth
-    reversals of orthographic cameras among them) and which one the penalty method reaches depends on
-    its path. With ``multistart`` every width keeps the lowest paper energy (the energy at ``rho_max``,
-    :func:`~nldr.nrsfm.joint_kernel.joint_energy`; no ground truth) among
+    Attributes
+    ----------
+    x : float
+        The best tau evaluated (lowest objective); also available as ``tau``.
+    fun : float
+        Its objective value.
+    status, message, wall_time
+        CONVERGED when Brent's method met ``xatol``.
+    nit : int
+        Iterations of Brent's method.
+    nfev : int
+        Objective evaluations (``len(history)``).
+    history : list of (tau, value)
+        Every evaluation, in order.
+    """
 
-    1. the full schedule rho0, rho0 rho_growth, ... from (R0, X0) (the only start without ``multistart``);
-    2. the same schedule without its first stage, from (R0, X0);
-    3. the last stage (rho_max) alone from every other width's solution after 1-2 (one round).
+    nfev: int
+    history: list
+
+    @property
+    def tau(self) -> float:
+        """The best tau evaluated, same as ``x``."""
+        return self.x
+
+
+def tune_tau(
+    objective: Callable[[float], float],
+    *,
+    log10_bounds: tuple[float, float] = (-1.0, 2.0),
+    xatol: float = 0.02,
+    verbose: bool = False,
+) -> TauSearchResult:
+    """Minimise ``objective(tau)`` over log10(tau) in ``log10_bounds`` by Brent's bounded method.
+
+    Golden-section search with parabolic interpolation (``scipy.optimize.minimize_scalar`` with
+    ``method="bounded"``, the algorithm of MATLAB's ``fminbound``), as the paper describes for the
+    TNH baseline of Table 4. The objective is the 3D error against ground truth, so the tuned
+    baseline is an oracle: say so wherever its numbers are shown.
 
     Parameters
     ----------
-    W2d : array (F, 2P)
-    mask : bool array (F, P) or None
-    R0 : array (F, 2, 3)
-        Starting cameras (the tuned TNH's).
-    X0 : array (F, 3P)
-        Starting shapes (the tuned TNH's).
-    gammas : dict
-        Width label -> RBF inverse squared width.
-    tau, rho0, rho_growth, rho_max : float
-    multistart : bool, default True
-    **options
-        Further keyword arguments of :func:`~nldr.nrsfm.joint_kernel.kernel_joint_cameras_shapes`.
+    objective : callable
+        ``objective(tau) -> float`` for tau > 0.
+    log10_bounds : (float, float), default (-1, 2)
+        Search interval of log10(tau).
+    xatol : float > 0, default 0.02
+        Absolute tolerance on log10(tau).
+    verbose : bool, default False
+        Print a line per evaluation (tau, objective, seconds so far) to stdout.
 
     Returns
     -------
-    dict : width label -> (JointKernelResult, paper energy); the result's ``nit`` counts the iterations
-    of all starts run for that width, its ``message`` names the start kept.
+    TauSearchResult
     """
-    schedule = dict(tau=tau, rho_growth=rho_growth, rho_max=rho_max, **options)
-    best, spent = {}, dict.fromkeys(gammas, 0)
+    start = time.perf_counter()
+    lo, hi = (float(b) for b in log10_bounds)
+    if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+        raise ValueError(f"log10_bounds must be two finite numbers, low < high; got {log10_bounds!r}")
+    xatol = check_positive(xatol, "xatol")
+    if not callable(objective):
+        raise ValueError(f"objective must be a callable tau -> float; got {type(objective).__name__}")
+    history: list[tuple[float, float]] = []
 
-    def consider(width, label, R, X, first_rho):
-        res = kernel_joint_cameras_shapes(W2d, mask, R, X, gamma=gammas[width], rho0=first_rho, **schedule)
-        energy = joint_energy(W2d, mask, res.R, res.x, gamma=gammas[width], tau=tau, rho=rho_max)
-        res.message = f"{label} (energy {energy:.10g}): {res.message}"
-        spent[width] += res.nit
-        if width not in best or energy < best[width][1]:
-            best[width] = (res, energy)
+    def f(log_tau):
+        tau = float(10.0**log_tau)
+        value = float(objective(tau))
+        if not np.isfinite(value):
+            raise ValueError(f"objective({tau:g}) returned {value!r}; it must be finite")
+        history.append((tau, value))
+        elapsed = time.perf_counter() - start
+        say(
+            verbose,
+            "tune_tau",
+            f"evaluation {len(history)}: tau={tau:.5g} objective={value:.5g} ({elapsed:.1f} s)",
+        )
+        return value
 
-    second = rho0 * rho_growth
-    for width in gammas:
-        consider(width, "full schedule", R0, X0, rho0)
-        if multistart and second <= rho_max * (1 + 1e-12):
-            consider(width, "schedule from its second stage", R0, X0, second)
-    if multistart:
-        first = {width: res for width, (res, _) in best.items()}
-        for width in gammas:
-            for other, res in first.items():
-                if other != width:
-                    consider(width, f"last stage from the {other} solution", res.R, res.x, rho_max)
-    for width, (res, _) in best.items():
-        res.nit = spent[width]
-    return best
-
-
-def tuned_tnh(W2d, mask, R0, X_gt, *, log10_tau_bounds, xatol, max_outer, tol):
-    """TNH with cameras refined in alternation, tau chosen by Brent's search on log10(tau) minimising
-    e3D against ``X_gt`` (an oracle for the baseline, as in the paper). Each evaluation runs the
-    alternation to convergence from the rigid cameras ``R0``.
-
-    Returns
-    -------
-    (best, search) : the alternation's result at the chosen tau, and the search's
-    :class:`~nldr.nrsfm.TauSearchResult` (``search.tau``, every evaluation in ``search.history``).
-    """
-    P = W2d.shape[1] // 2
-    solved = {}
-
-    def tnh_error(t):
-        res = tnh_with_camera_refinement(W2d, mask, R0, t, max_outer=max_outer, tol=tol)
-        solved[t] = res
-        return e3d(res.x, X_gt, P, align=True)
-
-    search = tune_tau(tnh_error, log10_bounds=log10_tau_bounds, xatol=xatol)
-    return solved[search.tau], search
+    res = minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": xatol})
+    best_tau, best_value = min(history, key=lambda tv: tv[1])
+    return TauSearchResult(
+        x=best_tau,
+        fun=best_value,
+        status=status_from(bool(res.success)),
+        message=str(res.message),
+        nit=int(res.nit),
+        wall_time=time.perf_counter() - start,
+        nfev=len(history),
+        history=history,
+    )
 
 
 class Table4(MocapExperiment):
@@ -400,25 +323,15 @@ class Table4(MocapExperiment):
 
     def run(self, job, settings, data_dir, *, progress=None, threads=1):
         seq = self.load(job, settings, data_dir, progress)
-        tnh, kernel = dict(settings["tnh"]), dict(settings["kernel"])
         run = run_sequence(
             seq,
             missing_fraction=job.params["missing_fraction"],
             seed=job.params["seed"],
-            log10_tau_bounds=tuple(tnh["log10_tau_bounds"]),
-            xatol=tnh["xatol"],
-            tnh_max_outer=tnh.get("max_outer", 20_000),
-            tnh_tol=tnh.get("tol", 1e-8),
-            tnh_search=bool(tnh.get("camera_search", False)),
+            tnh=settings["tnh"],
+            kernel=settings["kernel"],
             tau=settings["tau"],
             widths=tuple(settings["widths"]),
-            kernel_max_outer=kernel.pop("max_outer", 20),
-            kernel_tol=kernel.pop("tol", 1e-4),
-            kernel_camera_atol_deg=kernel.pop("camera_atol_deg", None),
-            kernel_cameras=settings.get("kernel_cameras", "alternate"),
-            joint_multistart=settings.get("joint_multistart", False),
             progress=progress,
-            **kernel,
         )
         if progress is not None:
             progress(f"TNH tau search (tau, e3d): {[(round(t, 5), round(e, 5)) for t, e in run.tau_search]}")

@@ -1,19 +1,18 @@
 """Non-rigid structure from motion (paper Section 4.3): layouts, e3D metric, reprojection term, TNH,
-camera estimation.
+camera estimation, the kernel regularizer with known or estimated cameras.
 
-Known cameras (Table 3): :func:`trace_norm_heuristic` is the one entry point of TNH (the trace-norm
-heuristic, eq. 12), exact-fit by ADMM (default), penalised by FISTA, or through cvxpy (optional
-dependency) as the reference; it returns a :class:`TNHResult`.
-
-Unknown cameras (Table 4): :func:`initialize_cameras` (rigid factorisation,
-:mod:`nldr.nrsfm.factorization`), :func:`tnh_with_camera_refinement` and :func:`tune_tau`
-(:mod:`nldr.nrsfm.unknown_cameras`; the kernel stage with cameras and shapes optimised jointly in
-:mod:`nldr.nrsfm.joint_kernel`) on top of the camera LM and the shape/camera alternation
-(:mod:`nldr.nrsfm.camera_refinement`, :mod:`nldr.nrsfm.rotations`), and :func:`tnh_camera_search`
-(:mod:`nldr.nrsfm.camera_search`: cameras that break the motion re-seated, kept where TNH's energy
-drops); evaluation up to the global gauge by :func:`e3d` (``align=True``) and :func:`camera_error`.
-With known cameras L-BFGS runs best in :class:`CameraFrameVariables` (each point in its camera's
-frame, the unheld directions scaled).
+:func:`reconstruct` is the one entry point of reconstruction: known cameras (Table 3) or
+``cameras="estimate"`` (Table 4: rigid factorisation, then cameras refined with the shapes), the
+trace-norm heuristic (``prior="tnh"``) or the kernel regularizer (``prior="kernel"``, from a TNH
+start), squared or Huber reprojection error; it returns a :class:`Reconstruction`. Underneath,
+:func:`trace_norm_heuristic` solves TNH with known cameras (``method=``: ADMM exact fit, FISTA, cvxpy
+as the reference), :mod:`nldr.nrsfm.camera_refinement` alternates TNH with the camera LM,
+:mod:`nldr.nrsfm.camera_search` re-seats cameras that break the motion, and
+:mod:`nldr.nrsfm.joint_kernel` optimises cameras and shapes jointly in the regularizer's penalty
+method. Energies: :func:`reprojection_error`, :func:`tnh_energy`, :func:`kernel_energy`. Evaluation
+up to the global gauge by :func:`e3d` (``align=True``) and :func:`camera_error`. With known cameras
+L-BFGS runs best in :class:`CameraFrameVariables` (each point in its camera's frame, the unheld
+directions scaled).
 
 Parameters from the tracks alone (:mod:`nldr.nrsfm.selection`): :func:`select_tnh_tau` and
 :func:`select_kernel` choose TNH's tau and the kernel method's tau and width by hold-out
@@ -25,10 +24,8 @@ Every solver result derives from :class:`nldr.result.SolverResult` (``x``, ``fun
 ``status``, ``message``, ``nit``, ``wall_time``).
 """
 
-from .camera_refinement import CameraShapeResult, refine_cameras_and_shapes
-from .camera_search import CameraSearchResult, tnh_camera_search
 from .factorization import initialize_cameras
-from .joint_kernel import JointKernelResult, joint_energy, kernel_joint_cameras_shapes
+from .joint_kernel import kernel_energy
 from .kernel_selection import KernelSelection, select_kernel
 from .layout import (
     cameras_from_stack,
@@ -46,24 +43,24 @@ from .metrics import (
     ground_truth_sigma,
     procrustes_rotation,
 )
-from .reprojection import OrthographicReprojection
-from .selection import (
-    TNHTauSelection,
-    holdout_reprojection_error,
-    select_tnh_tau,
-    visibility_folds,
-)
+from .reconstruct import Reconstruction, reconstruct
+from .reprojection import OrthographicReprojection, reprojection_error, tnh_energy
+from .selection import TNHTauSelection, select_tnh_tau, visibility_folds
 from .tnh import TNHResult, TNHSolveError, trace_norm_heuristic
-from .unknown_cameras import (
-    TauSearchResult,
-    kernel_with_camera_refinement,
-    tnh_with_camera_refinement,
-    tune_tau,
-)
 from .variables import CameraFrameVariables
 
 __all__ = [
+    "reconstruct",
+    "Reconstruction",
+    "trace_norm_heuristic",
+    "TNHResult",
+    "TNHSolveError",
+    "initialize_cameras",
+    "OrthographicReprojection",
     "CameraFrameVariables",
+    "reprojection_error",
+    "tnh_energy",
+    "kernel_energy",
     "stack_to_rows",
     "rows_to_stack",
     "cameras_from_stack",
@@ -76,24 +73,7 @@ __all__ = [
     "procrustes_rotation",
     "global_camera_alignment",
     "camera_error",
-    "OrthographicReprojection",
-    "trace_norm_heuristic",
-    "TNHResult",
-    "TNHSolveError",
-    "initialize_cameras",
-    "refine_cameras_and_shapes",
-    "CameraShapeResult",
-    "tnh_with_camera_refinement",
-    "kernel_with_camera_refinement",
-    "kernel_joint_cameras_shapes",
-    "joint_energy",
-    "JointKernelResult",
-    "tune_tau",
-    "TauSearchResult",
-    "tnh_camera_search",
-    "CameraSearchResult",
     "visibility_folds",
-    "holdout_reprojection_error",
     "select_tnh_tau",
     "TNHTauSelection",
     "select_kernel",

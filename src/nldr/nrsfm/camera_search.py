@@ -1,6 +1,6 @@
 """A data-only camera search for TNH with unknown cameras: re-seating cameras that break the motion.
 
-The camera/shape alternation (:func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement`) is
+The camera/shape alternation (:func:`~nldr.nrsfm.camera_refinement.tnh_with_camera_refinement`) is
 block-coordinate descent on the TNH energy tau ||X||_* + reprojection error, and it can stop in a
 poor basin: on Table 4's yoga and stretch sequences with 50 % missing data most frames end within
 about 10 degrees of the true cameras while a few end 90-180 degrees away (a camera turned over, whose
@@ -32,38 +32,13 @@ from scipy.spatial.transform import Rotation
 
 from .._validation import check_count, check_positive
 from ..result import SolverResult, status_from
-from .camera_refinement import CameraShapeResult
-from .reprojection import check_cameras, check_shapes, check_tracks
-from .rotations import nearest_orthonormal_rows
-from .unknown_cameras import tnh_with_camera_refinement
+from .camera_refinement import CameraShapeResult, tnh_with_camera_refinement
+from .reprojection import tnh_energy
+from .rotations import complete_rotations
 
-__all__ = ["PROPOSALS", "CameraSearchResult", "tnh_energy", "propose_cameras", "tnh_camera_search"]
+__all__ = ["PROPOSALS", "CameraSearchResult", "propose_cameras", "tnh_camera_search"]
 
 PROPOSALS = ("forward", "backward", "local")
-
-
-def tnh_energy(W2d, mask, R, X, tau: float) -> float:
-    """TNH's energy with unknown cameras, tau ||X||_* + sum of squared reprojection errors.
-
-    Parameters
-    ----------
-    W2d : array, shape (F, 2P)
-    mask : bool array, shape (F, P) or None
-    R : array, shape (F, 2, 3)
-    X : array, shape (F, 3P)
-    tau : float > 0
-
-    Returns
-    -------
-    float (unit of the tracks squared)
-    """
-    W, vis = check_tracks(W2d, mask, min_points=0)
-    F, P = vis.shape
-    R = check_cameras(R, F)
-    X = check_shapes(X, F, P)
-    tau = check_positive(tau, "tau")
-    E = (W.reshape(F, 2, P) - R @ X.reshape(F, 3, P)) * vis[:, None, :]
-    return float(tau * np.linalg.svd(X, compute_uv=False).sum() + np.vdot(E, E))
 
 
 def propose_cameras(R, mode: str, threshold_deg: float = 30.0) -> tuple[np.ndarray, np.ndarray]:
@@ -88,13 +63,12 @@ def propose_cameras(R, mode: str, threshold_deg: float = 30.0) -> tuple[np.ndarr
     if mode not in PROPOSALS:
         raise ValueError(f"mode must be one of {PROPOSALS}; got {mode!r}")
     threshold = np.radians(check_positive(threshold_deg, "threshold_deg"))
-    R = nearest_orthonormal_rows(check_cameras(R))
-    F = R.shape[0]
-    M = np.concatenate([R, np.cross(R[:, 0], R[:, 1])[:, None]], axis=1)
+    M = complete_rotations(R)
+    F = M.shape[0]
     out = M.copy()
     changed = []
     if F < 3:
-        return R.copy(), np.zeros(0, dtype=int)
+        return M[:, :2].copy(), np.zeros(0, dtype=int)
     if mode == "local":
         Q = Rotation.from_matrix(M)
         a, c = Q[:-2], Q[2:]
@@ -162,7 +136,7 @@ def tnh_camera_search(
     """Improve a converged TNH alternation ``start`` at weight ``tau`` by re-seating cameras.
 
     Each round: every proposal of :func:`propose_cameras` that re-seats at least one frame is
-    continued by :func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement` (cold shapes, the
+    continued by :func:`~nldr.nrsfm.camera_refinement.tnh_with_camera_refinement` (cold shapes, the
     keyword options ``alternation``, e.g. ``max_outer``, ``tol``); the lowest converged energy is kept
     if it is below the best so far by more than ``rtol`` (relative), and the next round starts from
     it. Stops at the first round that keeps nothing, or after ``max_rounds``.

@@ -1,15 +1,17 @@
-"""The kernel regularizer with cameras and shapes optimised jointly (Table 4's kernel stage, issue 17).
+"""The kernel regularizer with cameras and shapes optimised jointly (Table 4's kernel stage).
 
 The paper's energy with unknown cameras is, for every penalty weight rho of Algorithm 1,
 
     E_rho(R, S) = sum_f sum_j mask_fj ||w_f(x_j) - R_f s_f(x_j)||^2 + min_C [rho/2 ||K(S) - C^T C||_F^2
                   + tau ||C||_*]                                                              (1)
 
-with K the RBF kernel over the frames' shapes s_f (rows of S, F x 3P). Alternating the camera LM with
-the shape step (:func:`~nldr.nrsfm.unknown_cameras.kernel_with_camera_refinement`) leaves the cameras
-where they start: at the paper's tau = 1e-4 the shape step fits the tracks to 1e-9, so the reprojection
-error the LM sees is already zero at any cameras. The regularizer's pull on the cameras only shows
-when the cameras and the depths move together, which a block-coordinate scheme cannot do.
+with K the RBF kernel over the frames' shapes s_f (rows of S, F x 3P); with a Huber loss the squared
+reprojection error becomes sum h_delta over the image coordinates (:func:`nldr.data_terms.huber_loss`).
+Alternating the camera LM with a kernel shape step leaves the cameras where they start: at the
+paper's tau = 1e-4 the shape step fits the tracks to 1e-9, so the reprojection error the LM sees is
+already zero at any cameras (measured: about 1e-4 degree per camera step on Table 4's sequences).
+The regularizer's pull on the cameras only shows when the cameras and the depths move together,
+which a block-coordinate scheme cannot do.
 
 Change of variables. Complete every camera to a rotation Q_f = [R_f; r_f1 x r_f2] (3 x 3) and write the
 shape in the camera's frame, Z_f = Q_f s_f (3 x P): its first two rows are the predicted image points,
@@ -20,44 +22,47 @@ its third the depths. Then R_f s_f = Z_f[:2] and (1) becomes
 the same energy in new coordinates (a bijection), in which a camera can turn while the image fit
 stays as it is (the depths follow). :func:`joint_value_grad` evaluates (2) and its gradient with Q_f =
 A(q_f) Q0_f, A(q) the rotation of the quaternion q / |q| (a local parametrisation around Q0, q = (1, 0,
-0, 0) at the start); :func:`kernel_joint_cameras_shapes` minimises it by L-BFGS over (Z, q), one
-penalty stage per rho as :func:`~nldr.regularizer.minimize_regularized` does, re-centring the
+0, 0) at the start); :func:`solve_joint_kernel` minimises it by L-BFGS over (Z, q), one stage per
+rho of the regularizer's penalty method (:func:`~nldr.regularizer.penalty_method`), re-centring the
 rotations after every stage. Gradient of the regularizer in S: the envelope theorem
 (:mod:`nldr._reduced`); with G_f = d reg / d s_f (3 x P): dE/dZ_f = Q_f G_f and dE/dQ_f = Z_f G_f^T.
 
-Scaling (issue 16). In (2) the observed image coordinates carry the data term's curvature 2, while the
+Scaling. In (2) the observed image coordinates carry the data term's curvature 2, while the
 depths, the unobserved image coordinates and the quaternions see only the regularizer's, 1e-6 to 1e-3
 for Table 4's sequences (it grows with rho): a condition number of 1e3 to 1e6 between the blocks, on
 which plain L-BFGS needed 4.5k-15k iterations per width and often hit its limit in the first stage.
-With ``precondition=True`` every stage runs L-BFGS on u = v / D (a change of variables, the same
+Every stage therefore runs L-BFGS on u = v / D (a change of variables, the same
 minimisers) with D = 1 on the observed image coordinates and sqrt((2 + c_z) / c_z), sqrt((2 + c_z) / c_q)
 on the other coordinates and on the quaternions, c_z and c_q the curvatures of the stage's energy along
 its gradient restricted to each block (:func:`block_curvature`, a difference of two gradients).
+
+Multiple starts. Energy (1) has several local minima (per-frame depth reversals of orthographic
+cameras among them) and which one the penalty method reaches depends on its path;
+:func:`joint_kernel_multistart` keeps the lowest energy at the last rho (no ground truth) among a few
+schedules and starts.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
-from .._reduced import RankHint, lbfgs_minimize, reduced_value_grad
+from .._reduced import RankHint, kernel_factor, lbfgs_minimize, reduced_value_grad
 from .._threads import blas_threads_for
 from .._validation import check_count, check_positive
-from ..regularizer import isolation_safe_rho0, penalty_schedule
-from ..result import SolverResult, status_from
+from ..regularizer import RegularizerResult, isolation_safe_rho0, penalty_method, penalty_schedule
 from .reprojection import check_cameras, check_shapes, check_tracks
-from .rotations import nearest_orthonormal_rows
+from .rotations import complete_rotations, quaternion_rotation
 
 __all__ = [
     "JointKernelResult",
-    "complete_rotations",
-    "quaternion_rotation",
     "joint_value_grad",
-    "joint_energy",
+    "kernel_energy",
     "block_curvature",
-    "kernel_joint_cameras_shapes",
+    "solve_joint_kernel",
+    "joint_kernel_multistart",
 ]
 
 
@@ -74,47 +79,7 @@ class _NoData:
         return np.zeros(self.shape)
 
 
-def complete_rotations(R) -> np.ndarray:
-    """Rotations Q (F, 3, 3) whose first two rows are the cameras R (F, 2, 3) made orthonormal and
-    whose third row is their cross product (det Q = +1)."""
-    R = nearest_orthonormal_rows(check_cameras(R))
-    return np.concatenate([R, np.cross(R[:, 0], R[:, 1])[:, None]], axis=1)
-
-
-def quaternion_rotation(q, jacobian: bool = False):
-    """Rotation matrices A(q) (F, 3, 3) of the quaternions q / |q| (q: (F, 4), (w, x, y, z), any
-    non-zero length) and, if ``jacobian``, dA/dq (F, 3, 3, 4)."""
-    q = np.asarray(q, dtype=float)
-    w, x, y, z = q.T
-    n = np.einsum("fi,fi->f", q, q)
-    H = np.stack(
-        [
-            np.stack([w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-            np.stack([2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)], -1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z], -1),
-        ],
-        axis=1,
-    )  # (F, 3, 3), H = |q|^2 A
-    A = H / n[:, None, None]
-    if not jacobian:
-        return A, None
-    # dH/dq: every entry of H is a quadratic form in q; its derivative is linear in q
-    dH = np.empty(H.shape + (4,))
-    dH[:, 0, 0] = 2 * np.stack([w, x, -y, -z], -1)
-    dH[:, 0, 1] = 2 * np.stack([-z, y, x, -w], -1)
-    dH[:, 0, 2] = 2 * np.stack([y, z, w, x], -1)
-    dH[:, 1, 0] = 2 * np.stack([z, y, x, w], -1)
-    dH[:, 1, 1] = 2 * np.stack([w, -x, y, -z], -1)
-    dH[:, 1, 2] = 2 * np.stack([-x, -w, z, y], -1)
-    dH[:, 2, 0] = 2 * np.stack([-y, z, -w, x], -1)
-    dH[:, 2, 1] = 2 * np.stack([x, w, z, y], -1)
-    dH[:, 2, 2] = 2 * np.stack([w, -x, -y, z], -1)
-    # d(H / n) = dH / n - H (2 q^T) / n^2
-    J = dH / n[:, None, None, None] - A[..., None] * (2 * q / n[:, None])[:, None, None, :]
-    return A, J
-
-
-def joint_value_grad(Z, q, Q0, W3, m3, gamma, tau, rho, center=False, hint=None):
+def joint_value_grad(Z, q, Q0, W3, m3, gamma, tau, rho, center=False, hint=None, delta=None, spectrum=False):
     """Energy (2) of the module docstring and its gradients; no validation.
 
     Parameters
@@ -131,45 +96,59 @@ def joint_value_grad(Z, q, Q0, W3, m3, gamma, tau, rho, center=False, hint=None)
         Visibility as 0/1 weights.
     gamma, tau, rho : float
     center : bool
+    hint : RankHint, optional
+    delta : float > 0, optional
+        Huber threshold of the reprojection error (None: squared loss).
+    spectrum : bool
+        Also return the kernel's kept spectrum ``(lam, U, l)``.
 
     Returns
     -------
     value : float
     grad_Z : array (F, 3, P)
     grad_q : array (F, 4)
+    (lam, U, l) : only with ``spectrum``
     """
     F, _, P = Z.shape
     A, dA = quaternion_rotation(q, jacobian=True)
     Q = A @ Q0
     S = Q.transpose(0, 2, 1) @ Z  # (F, 3, P), s_f = Q_f^T z_f
-    reg, G, _ = reduced_value_grad(
+    reg, G, kept = reduced_value_grad(
         S.reshape(F, 3 * P), _NoData((F, 3 * P)), gamma, tau, rho, center, "auto", hint
     )
     G = G.reshape(F, 3, P)
     E = m3 * (W3 - Z[:, :2])
-    value = float(np.vdot(E, E)) + float(reg)
     grad_Z = Q @ G
-    grad_Z[:, :2] -= 2 * E
+    if delta is None:
+        value = float(np.vdot(E, E)) + float(reg)
+        grad_Z[:, :2] -= 2 * E
+    else:
+        a = np.abs(E)
+        value = float(np.where(a <= delta, a * a, 2 * delta * a - delta * delta).sum()) + float(reg)
+        grad_Z[:, :2] -= 2 * np.clip(E, -delta, delta)
     grad_Q = Z @ G.transpose(0, 2, 1)  # dE/dQ_f = Z_f G_f^T
     grad_A = grad_Q @ Q0.transpose(0, 2, 1)
     grad_q = np.einsum("fij,fijk->fk", grad_A, dA)
-    return value, grad_Z, grad_q
+    return (value, grad_Z, grad_q, kept) if spectrum else (value, grad_Z, grad_q)
 
 
-def joint_energy(W2d, mask, R, X, *, gamma: float, tau: float, rho: float, center: bool = False) -> float:
-    """The paper's energy (1) at cameras R (F, 2, 3) and shapes X (F, 3P): reprojection error over the
-    observed points plus the regularizer with C eliminated in closed form, at penalty weight rho.
-    Comparable across solvers that end their schedules at the same rho (used to choose between the
-    alternation and the joint step without ground truth)."""
+def kernel_energy(
+    W2d, mask, R, X, *, gamma: float, tau: float, rho: float, center: bool = False, delta=None
+) -> float:
+    """The paper's energy (1) at cameras R (F, 2, 3) and shapes X (F, 3P): the reprojection error
+    over the observed points (Huber with threshold ``delta`` if given) plus the regularizer with C
+    eliminated in closed form, at penalty weight rho. Comparable across solves that end their
+    schedules at the same rho (the multistart chooses by it, without ground truth)."""
     W, vis = check_tracks(W2d, mask)
     F, P = vis.shape
     X = check_shapes(X, F, P)
     Q = complete_rotations(check_cameras(R, F))
     Z = Q @ X.reshape(F, 3, P)
     q = np.tile([1.0, 0.0, 0.0, 0.0], (F, 1))
+    delta = None if delta is None else check_positive(delta, "delta")
     value, _, _ = joint_value_grad(
         Z, q, Q, W.reshape(F, 2, P), vis[:, None, :].astype(float), check_positive(gamma, "gamma"),
-        check_positive(tau, "tau"), check_positive(rho, "rho"), bool(center),
+        check_positive(tau, "tau"), check_positive(rho, "rho"), bool(center), delta=delta,
     )  # fmt: skip
     return value
 
@@ -219,31 +198,24 @@ def _stage_scaling(value_grad, v, observed, n_z, max_ratio=1e6):
 
 
 @dataclass(kw_only=True, repr=False)
-class JointKernelResult(SolverResult):
-    """Result of :func:`kernel_joint_cameras_shapes` (a :class:`~nldr.result.SolverResult`).
+class JointKernelResult(RegularizerResult):
+    """Result of :func:`solve_joint_kernel`: a :class:`~nldr.regularizer.RegularizerResult` (``x`` the
+    shapes (F, 3P) in the world frame, ``fun`` energy (1) at the last rho, ``C``, the stage and energy
+    histories) with the cameras.
 
     Attributes
     ----------
-    x : array (F, 3P)
-        Shapes (world frame, as rows).
     R : array (F, 2, 3)
         Cameras.
-    fun : float
-        Energy (1) at the last rho.
-    stage_energy : array (n_stages,)
-        Energy at the end of every penalty stage (at its rho).
-    rho_history : array (n_stages,)
     reprojection : float
-        Sum of squared reprojection errors over the observed points at the end.
+        The reprojection error (sum of squares, or of Huber losses) over the observed points at the end.
     """
 
     R: np.ndarray
-    stage_energy: np.ndarray
-    rho_history: np.ndarray
     reprojection: float
 
 
-def kernel_joint_cameras_shapes(
+def solve_joint_kernel(
     W2d,
     mask,
     R0,
@@ -259,13 +231,14 @@ def kernel_joint_cameras_shapes(
     tol: float = 1e-10,
     gtol: float = 1e-6,
     isolation_guard: bool = True,
-    precondition: bool = True,
+    delta: float | None = None,
 ) -> JointKernelResult:
     """Minimise the paper's energy (1) over cameras and shapes together, by the penalty method.
 
-    For rho = rho0, rho0 rho_growth, ... <= rho_max (as :func:`~nldr.regularizer.minimize_regularized`,
-    isolation guard included), L-BFGS on (2) of the module docstring over the camera-frame shapes Z
-    and local quaternions q, from the previous stage's cameras and shapes.
+    For rho = rho0, rho0 rho_growth, ... <= rho_max (:func:`~nldr.regularizer.penalty_schedule`,
+    isolation guard included as in :func:`~nldr.regularizer.minimize_regularized`), L-BFGS on the
+    scaled (2) of the module docstring over the camera-frame shapes Z and local quaternions q, from the
+    previous stage's cameras and shapes; the stages run in :func:`~nldr.regularizer.penalty_method`.
 
     Parameters
     ----------
@@ -273,24 +246,23 @@ def kernel_joint_cameras_shapes(
         Centred image tracks as rows.
     mask : bool array (F, P) or None
     R0 : array (F, 2, 3)
-        Starting cameras (e.g. the tuned TNH's).
+        Starting cameras (e.g. a TNH's).
     X0 : array (F, 3P)
-        Starting shapes (e.g. the tuned TNH's).
+        Starting shapes (e.g. a TNH's).
     gamma, tau : float > 0
         RBF inverse squared width and trace-norm weight.
     rho0, rho_growth, rho_max : float
-        Penalty schedule (:func:`~nldr.regularizer.penalty_schedule`).
+        Penalty schedule (Table 4's defaults).
     center : bool, default False
         Double-centre the kernel.
     max_inner : int, default 3000
         L-BFGS iterations per stage.
     tol, gtol : float > 0
-        L-BFGS's relative energy decrease and gradient tolerances.
+        L-BFGS's relative energy decrease and (scaled) gradient tolerances.
     isolation_guard : bool, default True
         As in :func:`~nldr.regularizer.minimize_regularized`.
-    precondition : bool, default True
-        Scale the blocks as the module docstring's "Scaling" (False: L-BFGS on (Z, q) as they are,
-        the implementation before issue 16; tol and gtol then apply to unscaled gradients).
+    delta : float > 0, optional
+        Huber threshold of the reprojection error, in the unit of the tracks (None: squared loss).
 
     Returns
     -------
@@ -302,58 +274,134 @@ def kernel_joint_cameras_shapes(
     Q = complete_rotations(check_cameras(R0, F, name="R0"))
     X0 = check_shapes(X0, F, P, name="X0")
     gamma, tau = check_positive(gamma, "gamma"), check_positive(tau, "tau")
+    delta = None if delta is None else check_positive(delta, "delta")
     floor = isolation_safe_rho0(tau) if isolation_guard else None
     rhos = penalty_schedule(rho0, rho_growth, rho_max, floor=floor)
     max_inner = check_count(max_inner, "max_inner")
     tol, gtol = check_positive(tol, "tol"), check_positive(gtol, "gtol")
     W3, m3 = W.reshape(F, 2, P), vis[:, None, :].astype(float)
-    Z = Q @ X0.reshape(F, 3, P)
     identity = np.tile([1.0, 0.0, 0.0, 0.0], (F, 1))
-    n_z = Z.size
+    n_z = F * 3 * P
     observed = np.zeros((F, 3, P), dtype=bool)
     observed[:, :2] = vis[:, None, :]
     observed = observed.ravel()
     hint = RankHint()
-    stage_energy, failures, nit = [], [], 0
+
+    # The penalty method's variable: the camera-frame shapes Z and the rotations Q, packed in one vector.
+    def unpack(state):
+        return state[:n_z].reshape(F, 3, P), state[n_z:].reshape(F, 3, 3)
+
+    def stage(state, rho, energies):
+        Z, Q = unpack(state)
+
+        def value_grad(v):
+            value, gZ, gq = joint_value_grad(
+                v[:n_z].reshape(F, 3, P),
+                v[n_z:].reshape(F, 4),
+                Q,
+                W3,
+                m3,
+                gamma,
+                tau,
+                rho,
+                center,
+                hint,
+                delta,
+            )
+            return value, np.concatenate([gZ.ravel(), gq.ravel()])
+
+        v0 = np.concatenate([Z.ravel(), identity.ravel()])
+        D = _stage_scaling(value_grad, v0, observed, n_z)
+        u, nit, ok, why = lbfgs_minimize(
+            lambda u: _scaled(value_grad, D, u), v0 / D, max_inner, tol, gtol, energies
+        )
+        v = D * u
+        Q = quaternion_rotation(v[n_z:].reshape(F, 4))[0] @ Q  # re-centre: q back to the identity
+        return np.concatenate([v[:n_z], Q.ravel()]), nit, ok, why
+
+    def stage_end(state, rho):
+        Z, Q = unpack(state)
+        value, _, _, (_, U, l) = joint_value_grad(
+            Z, identity, Q, W3, m3, gamma, tau, rho, center, hint, delta, spectrum=True
+        )
+        return value, kernel_factor(l, U), int(np.count_nonzero(l))
+
+    Z0 = Q @ X0.reshape(F, 3, P)
     with blas_threads_for(F):  # one BLAS thread on small problems (nldr._threads)
-        for rho in rhos:
-
-            def value_grad(v, Q=Q, rho=rho):
-                value, gZ, gq = joint_value_grad(
-                    v[:n_z].reshape(F, 3, P), v[n_z:].reshape(F, 4), Q, W3, m3, gamma, tau, rho, center, hint
-                )
-                return value, np.concatenate([gZ.ravel(), gq.ravel()])
-
-            v0 = np.concatenate([Z.ravel(), identity.ravel()])
-            D = _stage_scaling(value_grad, v0, observed, n_z) if precondition else np.ones(v0.size)
-
-            def scaled(u, D=D, value_grad=value_grad):
-                value, grad = value_grad(D * u)
-                return value, D * grad
-
-            u, stage_nit, ok, why = lbfgs_minimize(scaled, v0 / D, max_inner, tol, gtol, [])
-            v = D * u
-            nit += stage_nit
-            if not ok:
-                failures.append(f"rho={rho:g}: {why}")
-            stage_energy.append(value_grad(v)[0])
-            Z = v[:n_z].reshape(F, 3, P).copy()
-            Q = quaternion_rotation(v[n_z:].reshape(F, 4))[0] @ Q  # re-centre: q back to the identity
-    X = (Q.transpose(0, 2, 1) @ Z).reshape(F, 3 * P)
+        res = penalty_method(np.concatenate([Z0.ravel(), Q.ravel()]), rhos, stage, stage_end, start=start)
+    Z, Q = unpack(res.x)
     E = m3 * (W3 - Z[:, :2])
-    if failures:
-        message = "iteration limit reached in " + "; ".join(failures)
+    if delta is None:
+        reprojection = float(np.vdot(E, E))
     else:
-        message = f"all {len(rhos)} penalty stages converged (rho {rhos[0]:g} to {rhos[-1]:g})"
-    return JointKernelResult(
-        x=X,
-        fun=float(stage_energy[-1]),
-        status=status_from(not failures),
-        message=message,
-        nit=nit,
-        wall_time=time.perf_counter() - start,
-        R=Q[:, :2].copy(),
-        stage_energy=np.asarray(stage_energy),
-        rho_history=np.asarray(rhos, dtype=float),
-        reprojection=float(np.vdot(E, E)),
-    )
+        a = np.abs(E)
+        reprojection = float(np.where(a <= delta, a * a, 2 * delta * a - delta * delta).sum())
+    base = {f.name: getattr(res, f.name) for f in fields(res)}
+    base.update(x=(Q.transpose(0, 2, 1) @ Z).reshape(F, 3 * P), wall_time=time.perf_counter() - start)
+    return JointKernelResult(**base, R=Q[:, :2].copy(), reprojection=reprojection)
+
+
+def _scaled(value_grad, D, u):
+    value, grad = value_grad(D * u)
+    return value, D * grad
+
+
+def joint_kernel_multistart(W2d, mask, R0, X0, gammas, *, tau: float, multistart: bool = True, **options):
+    """:func:`solve_joint_kernel` for every width of ``gammas``, each keeping the lowest energy (1) at
+    the last rho (:func:`kernel_energy`; no ground truth) among its starts.
+
+    With ``multistart`` the starts of a width are
+
+    1. the full schedule from (R0, X0) (the only start without ``multistart``);
+    2. the same schedule without its first stage, from (R0, X0);
+    3. the last stage alone from every other width's solution after 1-2 (one round).
+
+    Parameters
+    ----------
+    W2d : array (F, 2P)
+    mask : bool array (F, P) or None
+    R0 : array (F, 2, 3)
+        Starting cameras (a TNH's).
+    X0 : array (F, 3P)
+        Starting shapes (a TNH's).
+    gammas : dict
+        Label -> RBF inverse squared width.
+    tau : float > 0
+    multistart : bool, default True
+    **options
+        Further keyword arguments of :func:`solve_joint_kernel` (the schedule, tolerances, ``delta``).
+
+    Returns
+    -------
+    dict : label -> (JointKernelResult, energy); the result's ``nit`` counts the iterations of all
+    starts run for that width, its ``message`` names the start kept.
+    """
+    rho0 = options.pop("rho0", 1e-3)
+    rho_growth, rho_max = options.setdefault("rho_growth", 10.0), options.setdefault("rho_max", 10.0)
+    energy_options = {k: options[k] for k in ("center", "delta") if k in options}
+    best, spent = {}, dict.fromkeys(gammas, 0)
+
+    def consider(width, label, R, X, first_rho):
+        res = solve_joint_kernel(W2d, mask, R, X, gamma=gammas[width], tau=tau, rho0=first_rho, **options)
+        energy = kernel_energy(
+            W2d, mask, res.R, res.x, gamma=gammas[width], tau=tau, rho=rho_max, **energy_options
+        )
+        res.message = f"{label} (energy {energy:.10g}): {res.message}"
+        spent[width] += res.nit
+        if width not in best or energy < best[width][1]:
+            best[width] = (res, energy)
+
+    second = rho0 * rho_growth
+    for width in gammas:
+        consider(width, "full schedule", R0, X0, rho0)
+        if multistart and second <= rho_max * (1 + 1e-12):
+            consider(width, "schedule from its second stage", R0, X0, second)
+    if multistart:
+        first = {width: res for width, (res, _) in best.items()}
+        for width in gammas:
+            for other, res in first.items():
+                if other != width:
+                    consider(width, f"last stage from the {other} solution", res.R, res.x, rho_max)
+    for width, (res, _) in best.items():
+        res.nit = spent[width]
+    return best

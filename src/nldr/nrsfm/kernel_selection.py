@@ -10,10 +10,9 @@ candidates at which the regularizer did not move its start (those score the star
 linear completion of the image tracks the 2D score favours although it is worse in depth,
 docs/REPRODUCTION.md#selection-nrsfm). With known cameras (Table 3) every fold starts from the
 exact-fit TNH of its training points; after :func:`select_tnh_tau` (Table 4) every fold starts from
-that fold's TNH at the selected tau, and the refit alternates the kernel shape step with the camera
-LM from the selected TNH, as Table 4's kernel stage does. The fold solves keep the fold's TNH
-cameras fixed: Table 4's kernel stage moves the cameras by less than 0.01 degrees
-(docs/REPRODUCTION.md#table-4-tnh), so refining them in every fold would only multiply the cost.
+that fold's TNH at the selected tau, and every fold solve and the refit are Table 4's kernel stage:
+cameras and shapes optimised jointly (:func:`~nldr.nrsfm.reconstruct` with estimated cameras; the
+fold solves from one start each, the refit with the multistart of ``camera_options``).
 
 Cost. The kernel candidates of one (fold, width) pair are solved along tau from the smallest up, each
 after the first warm-started from its neighbour with the last penalty stage only (the argument of
@@ -24,7 +23,7 @@ schedule. Folds run in parallel with ``n_jobs``.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,14 +31,12 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from .._cv import positive_grid, run_jobs, summarise_folds
-from .._options import merge_solver_kwargs
 from .._validation import check_count, check_positive
-from ..kernels import d_max_width, d_med_width
 from ..regularizer import minimize_regularized
-from .reprojection import OrthographicReprojection, check_cameras, check_tracks
-from .selection import TNHTauSelection, holdout_reprojection_error, visibility_folds
+from .reconstruct import WIDTH_RULES, reconstruct, solver_arguments
+from .reprojection import OrthographicReprojection, check_cameras, check_tracks, reprojection_error
+from .selection import TNHTauSelection, visibility_folds
 from .tnh import trace_norm_heuristic
-from .unknown_cameras import kernel_with_camera_refinement
 from .variables import CameraFrameVariables
 
 __all__ = [
@@ -63,8 +60,6 @@ PAPER_KERNEL = (1e-4, 1.0)
 MIN_MOVE = 1e-3
 #: Kernel widths as multiples of the width rule's gamma (0.5: wider kernel, 2: narrower).
 WIDTH_MULTIPLES = (0.5, 1.0, 2.0)
-#: The paper's width rules: name -> gamma of the RBF kernel from shapes as rows.
-WIDTH_RULES: dict[str, Callable[[np.ndarray], float]] = {"d_max": d_max_width, "d_med": d_med_width}
 
 
 # --------------------------------------------------------------------------------------------------
@@ -92,9 +87,9 @@ class KernelSelection:
         (``max_move >= min_move``); with ``rule="reference"`` also ``mean_diff_reference`` and
         ``se_diff_reference``: mean and standard error over folds of the score minus the
         reference's score in the same fold.
-    result_ : RegularizerResult or CameraShapeResult
+    result_ : RegularizerResult or Reconstruction
         The refit on every observed point: the regularizer with the known cameras, or (after
-        :func:`select_tnh_tau`) its alternation with the camera LM, which also has cameras ``R``.
+        :func:`select_tnh_tau`) Table 4's kernel stage, which also has cameras ``R``.
     fold_scores_ : DataFrame, shape (n_folds, n_candidates)
         Hold-out score of every candidate (columns: (width_multiple, tau), as the rows of
         ``cv_results_``) in every fold (rows): the paired values behind ``rule="reference"``.
@@ -122,34 +117,43 @@ class KernelSelection:
         )
 
 
-def _kernel_fold(W2d, train, hidden, R, X_start, rule, multiples, taus, warm_start, options, depth_scale):
+def _kernel_fold(W2d, train, hidden, R, start, rule, multiples, taus, warm_start, options, depth_scale):
     with threadpool_limits(1):
-        term = OrthographicReprojection(W2d, R, train)
-        if depth_scale is not None:  # the fold's cameras are fixed: L-BFGS in their frames
-            options = {**options, "variables": CameraFrameVariables(R, train, depth_scale)}
-        rho_max = options.get("rho_max", 1e4)
+        X_start = start.x
+        if R is not None:
+            term = OrthographicReprojection(W2d, R, train)
+            if depth_scale is not None:  # the fold's cameras are fixed: L-BFGS in their frames
+                options = {**options, "variables": CameraFrameVariables(R, train, depth_scale)}
+        rho_max = options.get("rho_max", 1e4 if R is not None else 10.0)
         base_gamma = WIDTH_RULES[rule](X_start)
         rows = []
         for m in multiples:
             previous = None
             for tau in taus:
-                start = time.process_time()
+                begin = time.process_time()
+                stage = options
                 if warm_start and previous is not None:
-                    # the last stage alone, in the units of the full schedule (scale sqrt(rho0))
-                    unit = {"scale": float(np.sqrt(options.get("rho0", 1.0)))}
-                    last = {"rho0": rho_max, "rho_max": rho_max}
-                    stage = merge_solver_kwargs({"options": unit}, options, last)
-                    res = minimize_regularized(term, previous, gamma=m * base_gamma, tau=float(tau), **stage)
+                    stage = {**options, "rho0": rho_max, "rho_max": rho_max}
+                if R is None:  # Table 4's kernel stage from one start (the previous candidate's, warm)
+                    res = reconstruct(
+                        W2d, train, prior="kernel", tau=float(tau), width=m * base_gamma,
+                        start=previous or start, multistart=False, **stage,
+                    )  # fmt: skip
                 else:
-                    res = minimize_regularized(term, X_start, gamma=m * base_gamma, tau=float(tau), **options)
-                previous = res.x
-                error = holdout_reprojection_error(W2d, hidden, R, res.x)
+                    if stage is not options:  # the last stage alone, in the full schedule's units
+                        stage = {"scale": float(np.sqrt(options.get("rho0", 1.0))), **stage}
+                    X0 = X_start if previous is None else previous.x
+                    res = minimize_regularized(
+                        term, X0, gamma=m * base_gamma, tau=float(tau), **solver_arguments(stage)
+                    )
+                previous = res if warm_start else None
+                error = reprojection_error(W2d, hidden, R if R is not None else res.R, res.x, mean=True)
                 rows.append(
                     {
                         "tau": float(tau),
                         "width_multiple": float(m),
                         "test_error": error,
-                        "fit_time": time.process_time() - start,
+                        "fit_time": time.process_time() - begin,
                         "move": float(np.linalg.norm(res.x - X_start) / np.linalg.norm(X_start)),
                     }
                 )
@@ -184,7 +188,7 @@ def _choose_kernel(rows: list[dict], rule: str, reference, min_move: float):
 
 def _known_camera_start(W2d, R, train, tnh_options):
     with threadpool_limits(1):
-        return trace_norm_heuristic(W2d, R, train, **tnh_options).x
+        return trace_norm_heuristic(W2d, R, train, **tnh_options)
 
 
 def select_kernel(
@@ -227,9 +231,9 @@ def select_kernel(
         (:func:`~nldr.nrsfm.trace_norm_heuristic` with ``tnh_options``).
     tnh : TNHTauSelection, optional
         Unknown cameras: its folds are reused, each fold starts from that fold's TNH (cameras and shapes)
-        at the selected tau and keeps those cameras; the refit starts from ``tnh.result_`` and
-        alternates with the camera LM (:func:`kernel_with_camera_refinement`, ``camera_options``:
-        ``max_outer``, ``tol``).
+        at the selected tau; every fold solve and the refit (from ``tnh.result_``) optimise cameras and
+        shapes jointly (:func:`~nldr.nrsfm.reconstruct`, the fold solves from one start each, the refit
+        with ``camera_options``, e.g. ``multistart``).
     taus : sequence of float > 0, optional
         Default :data:`DEFAULT_KERNEL_TAUS`.
     width_multiples : sequence of float > 0, optional
@@ -316,8 +320,8 @@ def select_kernel(
         if tnh.folds_[0].shape != mask.shape or np.any(tnh.folds_[0] & ~mask):
             raise ValueError("tnh was selected on another mask; pass the mask of select_tnh_tau")
         folds = tnh.folds_
-        starts = [res.x for res in tnh.fold_results_]
-        fold_cameras = [res.R for res in tnh.fold_results_]
+        starts = list(tnh.fold_results_)
+        fold_cameras = [None] * len(folds)  # estimated, by every fold solve
     args = [
         (W2d, mask & ~h, h, Rk, Xk, width_rule, multiples, taus, warm_start, regularizer_options, depth_scale)
         for h, Rk, Xk in zip(folds, fold_cameras, starts, strict=True)
@@ -328,7 +332,7 @@ def select_kernel(
     tau, multiple = float(cv["tau"].iloc[best]), float(cv["width_multiple"].iloc[best])
     if R is not None:
         if X_start is None:
-            X0 = _known_camera_start(W2d, R, mask, tnh_options)
+            X0 = _known_camera_start(W2d, R, mask, tnh_options).x
         else:
             X0 = np.asarray(X_start, dtype=np.float64)
             if X0.shape != (mask.shape[0], 3 * mask.shape[1]):
@@ -339,15 +343,16 @@ def select_kernel(
             refit["variables"] = CameraFrameVariables(R, mask, depth_scale)
         begin = time.process_time()
         term = OrthographicReprojection(W2d, R, mask)
-        result = minimize_regularized(term, X0, gamma=gamma, tau=tau, **refit)
+        result = minimize_regularized(term, X0, gamma=gamma, tau=tau, **solver_arguments(refit))
         start = (R, X0)
     else:
         R0, X0 = tnh.result_.R, tnh.result_.x
         gamma = multiple * WIDTH_RULES[width_rule](X0)
         begin = time.process_time()
-        result = kernel_with_camera_refinement(
-            W2d, mask, R0, X0, gamma=gamma, tau=tau, **dict(camera_options or {}), **regularizer_options
-        )
+        result = reconstruct(
+            W2d, mask, prior="kernel", tau=tau, width=gamma, start=tnh.result_,
+            **dict(camera_options or {}), **regularizer_options,
+        )  # fmt: skip
         start = (R0, X0)
     return KernelSelection(
         tau, multiple, gamma, cv, scores, result, folds, start, time.process_time() - begin

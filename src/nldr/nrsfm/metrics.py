@@ -41,7 +41,7 @@ import numpy as np
 
 from .._validation import as_float_matrix, check_count
 from .reprojection import check_cameras
-from .rotations import nearest_orthonormal_rows
+from .rotations import complete_rotations
 
 __all__ = [
     "e3d",
@@ -240,10 +240,7 @@ def camera_error(R_est, R_gt, *, Q=None, degrees: bool = True) -> float:
         Q = as_float_matrix(Q, "Q")
         if Q.shape != (3, 3) or not np.allclose(Q @ Q.T, np.eye(3), atol=1e-8):
             raise ValueError(f"Q must be a 3x3 orthogonal matrix; got shape {Q.shape}")
-    A = nearest_orthonormal_rows(R_est @ Q.T)
-    B = nearest_orthonormal_rows(R_gt)
-    A3 = np.concatenate([A, np.cross(A[:, 0], A[:, 1])[:, None]], axis=1)
-    B3 = np.concatenate([B, np.cross(B[:, 0], B[:, 1])[:, None]], axis=1)
+    A3, B3 = complete_rotations(R_est @ Q.T), complete_rotations(R_gt)
     cos = (np.einsum("fij,fij->f", A3, B3) - 1) / 2
     # arccos is ill-conditioned near 0: use the chordal distance ||A3 - B3||_F = 2 sqrt(2) sin(theta / 2).
     chord = np.linalg.norm(A3 - B3, axis=(1, 2))

@@ -5,9 +5,11 @@ rows W (F, 2P), cameras R (F, 2, 3) and the visibility mask Z (F, P); see :mod:`
 and the data-term protocol in :mod:`nldr.data_terms`.
 
 Also the pieces the other NRSfM modules share: the input checks (:func:`check_cameras`,
-:func:`check_visibility_mask`, :func:`check_tracks`, :func:`check_shapes`) and the batched per-frame
+:func:`check_visibility_mask`, :func:`check_tracks`, :func:`check_shapes`), the batched per-frame
 residual (:func:`visibility_weights`, :func:`masked_residual`) of the first-order TNH, the camera LM
-and the camera/shape alternation.
+and the camera/shape alternation, and the energies with cameras as arguments:
+:func:`reprojection_error` (total, or mean over a set of points: the hold-out score) and
+:func:`tnh_energy`. The kernel method's energy is :func:`nldr.nrsfm.joint_kernel.kernel_energy`.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import warnings
 import numpy as np
 import scipy.sparse as sp
 
-from .._validation import as_float_matrix, check_magnitude
+from .._validation import as_float_matrix, check_magnitude, check_positive
 
 __all__ = [
     "OrthographicReprojection",
@@ -27,6 +29,8 @@ __all__ = [
     "check_shapes",
     "visibility_weights",
     "masked_residual",
+    "reprojection_error",
+    "tnh_energy",
 ]
 
 
@@ -231,3 +235,38 @@ def masked_residual(W3: np.ndarray, m3: np.ndarray | None, R: np.ndarray, S: np.
     if m3 is not None:
         E *= m3
     return E
+
+
+def reprojection_error(W2d, mask, R, X, *, mean: bool = False) -> float:
+    """Sum (``mean=True``: mean) over the points (f, j) where ``mask`` is True of
+    ``||w_f(x_j) - R_f s_f(x_j)||^2`` (both image coordinates; unit of the tracks squared).
+
+    With the observed points it is the data term with cameras R; with hidden points and
+    ``mean=True``, the hold-out score of :mod:`nldr.nrsfm.selection`.
+
+    Parameters
+    ----------
+    W2d : array, shape (F, 2P)
+        Image tracks as rows (finite where ``mask`` is True).
+    mask : bool array, shape (F, P) or None (all points)
+    R : array, shape (F, 2, 3)
+        Cameras (known or estimated).
+    X : array, shape (F, 3P)
+        Shapes as rows.
+    mean : bool, default False
+    """
+    W, mask = check_tracks(W2d, mask, min_points=0)
+    F, P = mask.shape
+    R, X = check_cameras(R, F), check_shapes(X, F, P)
+    if mean and not mask.any():
+        raise ValueError("mask has no True entry: no point to score")
+    squared = np.sum((W.reshape(F, 2, P) - R @ X.reshape(F, 3, P)) ** 2, axis=1)[mask]
+    return float(squared.mean() if mean else squared.sum())
+
+
+def tnh_energy(W2d, mask, R, X, tau: float) -> float:
+    """TNH's energy tau ||X||_* + :func:`reprojection_error` over the observed points (unit of the
+    tracks squared), with cameras R (F, 2, 3) known or estimated and shapes X (F, 3P)."""
+    error = reprojection_error(W2d, mask, R, X)  # validates W2d, mask, R and X
+    nuclear = float(np.linalg.svd(np.asarray(X, float), compute_uv=False).sum())
+    return check_positive(tau, "tau") * nuclear + error

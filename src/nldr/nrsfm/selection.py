@@ -14,7 +14,7 @@ on every observed point. Nothing here sees the 3D ground truth.
 - :func:`visibility_folds`: the hidden points of each fold (same seed, same folds).
 - :func:`select_tnh_tau`: TNH's tau with cameras estimated (Table 4's pipeline: rigid factorisation,
   then TNH alternating with the camera LM, every tau from the rigid cameras, as the oracle search of
-  :func:`~nldr.nrsfm.unknown_cameras.tune_tau` does). Each fold re-estimates the rigid cameras from
+  :func:`~nldr.experiments.table4.tune_tau` does). Each fold re-estimates the rigid cameras from
   its own training points.
 - The kernel method's tau and width: :mod:`nldr.nrsfm.kernel_selection` (same folds and score).
 
@@ -36,15 +36,13 @@ from threadpoolctl import threadpool_limits
 
 from .._cv import positive_grid, run_jobs, summarise_folds
 from .._validation import check_count, check_positive
-from .camera_refinement import CameraShapeResult
 from .factorization import initialize_cameras
-from .reprojection import check_tracks
-from .unknown_cameras import tnh_with_camera_refinement
+from .reconstruct import Reconstruction, reconstruct
+from .reprojection import check_tracks, reprojection_error
 
 __all__ = [
     "DEFAULT_TNH_TAUS",
     "visibility_folds",
-    "holdout_reprojection_error",
     "TNHTauSelection",
     "select_tnh_tau",
 ]
@@ -134,29 +132,6 @@ def visibility_folds(
     return folds
 
 
-def holdout_reprojection_error(W2d, hidden, R, X) -> float:
-    """Mean squared reprojection error of the hidden points: mean over (f, j) hidden of
-    ``||w_f(x_j) - R_f s_f(x_j)||^2`` (both image coordinates; unit of the tracks squared).
-
-    Parameters
-    ----------
-    W2d : array, shape (F, 2P)
-        Image tracks as rows (must be finite at the hidden points).
-    hidden : bool array, shape (F, P)
-    R : array, shape (F, 2, 3)
-        The reconstruction's cameras (known or estimated).
-    X : array, shape (F, 3P)
-        The reconstruction's shapes as rows.
-    """
-    W2d = np.asarray(W2d, dtype=float)
-    hidden = np.asarray(hidden, dtype=bool)
-    F, P = hidden.shape
-    if not hidden.any():
-        raise ValueError("hidden has no True entry: no point to score")
-    residual = W2d.reshape(F, 2, P) - np.asarray(R) @ np.asarray(X).reshape(F, 3, P)
-    return float(np.sum(residual**2, axis=1)[hidden].mean())
-
-
 # --------------------------------------------------------------------------------------------------
 # TNH's tau with estimated cameras (Table 4)
 # --------------------------------------------------------------------------------------------------
@@ -174,13 +149,14 @@ class TNHTauSelection:
         One row per candidate, by tau: ``tau, mean_test_error`` (mean over folds of the mean squared
         reprojection error of the hidden points, unit of the tracks squared), ``std_test_error``
         (sample sd over folds), ``fit_time`` (mean CPU seconds of one fold solve).
-    result_ : CameraShapeResult
-        TNH with camera refinement at ``tau_`` on every observed point, from ``rigid_cameras_``.
+    result_ : Reconstruction
+        TNH with estimated cameras at ``tau_`` on every observed point, from ``rigid_cameras_``
+        (:func:`~nldr.nrsfm.reconstruct`).
     rigid_cameras_ : array, shape (F, 2, 3)
         Rigid factorisation of every observed point (the refit's start).
     folds_ : list of bool arrays, shape (F, P)
         The hidden points of each fold.
-    fold_results_ : list of CameraShapeResult
+    fold_results_ : list of Reconstruction
         Each fold's solve at ``tau_`` (start of :func:`select_kernel`'s folds).
     refit_time_ : float
         CPU seconds of the refit alone (rigid factorisation and one alternation): the cost of one solve.
@@ -188,7 +164,7 @@ class TNHTauSelection:
 
     tau_: float
     cv_results_: pd.DataFrame
-    result_: CameraShapeResult
+    result_: Reconstruction
     rigid_cameras_: np.ndarray
     folds_: list
     fold_results_: list
@@ -205,8 +181,8 @@ def _tnh_fold(W2d, train, hidden, taus, options):
         rows, results = [], []
         for tau in taus:
             start = time.process_time()
-            res = tnh_with_camera_refinement(W2d, train, R0, float(tau), **options)
-            error = holdout_reprojection_error(W2d, hidden, res.R, res.x)
+            res = reconstruct(W2d, train, prior="tnh", tau=float(tau), initial_cameras=R0, **options)
+            error = reprojection_error(W2d, hidden, res.R, res.x, mean=True)
             rows.append({"tau": float(tau), "test_error": error, "fit_time": time.process_time() - start})
             results.append(res)
         return rows, results
@@ -221,15 +197,18 @@ def select_tnh_tau(
     holdout_fraction: float | None = None,
     random_state=0,
     n_jobs: int = 1,
+    camera_search=False,
     **alternation_options,
 ) -> TNHTauSelection:
     """Choose TNH's tau for NRSfM with unknown cameras by hold-out reprojection error.
 
     Per fold: rigid factorisation of the training points
     (:func:`~nldr.nrsfm.factorization.initialize_cameras`), then for every tau
-    :func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement` from those cameras (a cold start,
-    to convergence), scored on the fold's hidden points. The chosen tau is refitted on every observed
-    point from the rigid cameras of all of them: exactly one evaluation of Table 4's oracle search.
+    TNH with estimated cameras from those cameras (:func:`~nldr.nrsfm.reconstruct` with
+    ``prior="tnh"``: a cold start, to convergence), scored on the fold's hidden points. The chosen tau
+    is refitted on every observed point from the rigid cameras of all of them: exactly one evaluation
+    of Table 4's oracle search (then the camera search, with ``camera_search``, as Table 4 does at
+    its tau*).
 
     Parameters
     ----------
@@ -243,9 +222,11 @@ def select_tnh_tau(
         Folds of :func:`visibility_folds` (every frame keeps 3 training points).
     n_jobs : int >= 1
         Processes over the folds, one BLAS thread each.
+    camera_search : bool or mapping, default False
+        The refit's camera search (:func:`~nldr.nrsfm.reconstruct`'s option).
     **alternation_options
-        Passed to :func:`~nldr.nrsfm.unknown_cameras.tnh_with_camera_refinement` (``max_outer``,
-        ``tol``, ...), in the folds and the refit.
+        TNH's options in :func:`~nldr.nrsfm.reconstruct` (``max_outer``, ``tol``, ``window``), in the
+        folds and the refit.
 
     Returns
     -------
@@ -263,7 +244,15 @@ def select_tnh_tau(
     tau = float(cv["tau"].iloc[best])
     start = time.process_time()
     R0 = initialize_cameras(W2d, mask)
-    result = tnh_with_camera_refinement(W2d, mask, R0, tau, **alternation_options)
+    result = reconstruct(
+        W2d,
+        mask,
+        prior="tnh",
+        tau=tau,
+        initial_cameras=R0,
+        camera_search=camera_search,
+        **alternation_options,
+    )
     refit_time = time.process_time() - start
     k = int(np.flatnonzero(taus == tau)[0])
     fold_results = [results[k] for _, results in per_fold]

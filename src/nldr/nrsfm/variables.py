@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._validation import check_positive
+from .rotations import complete_rotations
 
 __all__ = ["CameraFrameVariables"]
 
@@ -39,13 +40,10 @@ class CameraFrameVariables:
     """
 
     def __init__(self, R, mask, depth_scale: float):
-        R = np.asarray(R, dtype=np.float64)
+        Q = complete_rotations(R, project=False)  # (F, 3, 3)
         mask = np.asarray(mask, dtype=bool)
-        if R.ndim != 3 or R.shape[1:] != (2, 3):
-            raise ValueError(f"R must have shape (F, 2, 3); got {R.shape}")
-        if mask.ndim != 2 or mask.shape[0] != R.shape[0]:
-            raise ValueError(f"mask must have shape (F, P) with F = {R.shape[0]}; got {mask.shape}")
-        Q = np.concatenate([R, np.cross(R[:, 0], R[:, 1])[:, None]], axis=1)  # (F, 3, 3)
+        if mask.ndim != 2 or mask.shape[0] != Q.shape[0]:
+            raise ValueError(f"mask must have shape (F, P) with F = {Q.shape[0]}; got {mask.shape}")
         if np.any(np.abs(np.linalg.det(Q)) < 1e-12):
             raise ValueError("R has a camera with two dependent rows; the change of variables needs a basis")
         scale = np.ones((R.shape[0], 3, mask.shape[1]))
