@@ -78,7 +78,7 @@ def main():
             gamma = d_med_width(tnh)
             cpu = time.process_time()
             ls = minimize_regularized(
-                term, tnh, gamma=gamma, tau=1e-4, rho0=1e-3, rho_max=10.0, gtol=args.gtol
+                term, tnh, gamma=gamma, tau=1e-4, rho0=1e-3, rho_max=10.0, options={"gtol": args.gtol}
             )
             out["Kernel (LS)"] = (e3d(ls.x, X_gt, P), time.process_time() - cpu, ls.nit, ls.success)
             scale = float(np.std(W_clean))
@@ -86,7 +86,8 @@ def main():
                 delta = fraction * scale
                 cpu = time.process_time()
                 hub = minimize_regularized(
-                    Huber(term, delta), tnh, gamma=gamma, tau=1e-4, rho0=1e-3, rho_max=10.0, gtol=args.gtol
+                    Huber(term, delta), tnh, gamma=gamma, tau=1e-4, rho0=1e-3, rho_max=10.0,
+                    options={"gtol": args.gtol},
                 )
                 out[f"Kernel (Huber) delta={fraction:g}sd"] = (
                     e3d(hub.x, X_gt, P),

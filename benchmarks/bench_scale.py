@@ -7,11 +7,13 @@ squares; gamma 0.075, tau 0.1, uncentred; schedule rho0 = 1, growth 10, rho_max 
 with ``time.process_time`` and BLAS pinned to one thread (threadpoolctl).
 
 ``--options`` passes keyword arguments to :func:`nldr.regularizer.minimize_regularized` as JSON, e.g.
-``'{"eigensolver": "full"}'`` or ``'{"warm_start": "nystroem", "landmarks": 100, "exact_stages": 2}'``
+``'{"options": {"eigensolver": "full"}}'`` or
+``'{"method": "nystroem-warm", "options": {"landmarks": 100, "exact_stages": 2}}'``
 (Nystroem stages, then the exact solver's last two stages), or
-``'{"warm_start": "nystroem", "last_landmarks": 200, "exact_tol": 3e-6}'`` (200 landmarks in the last
-Nystroem stage, and the exact stage stopped on an energy plateau); ``--label`` names the row. To time a
-previous implementation, run this script with ``PYTHONPATH`` pointing at that commit's ``src``.
+``'{"method": "nystroem-warm", "options": {"last_landmarks": 200, "exact_tol": 3e-6}}'``
+(200 landmarks in the last Nystroem stage, and the exact stage stopped on an energy plateau);
+``--label`` names the row. To time a previous implementation, run this script with ``PYTHONPATH``
+pointing at that commit's ``src``.
 
 Writes (appends to) ``--out``/scale.csv: label, n, p, seed, cpu, nit, sse, sse_mean_imputation,
 final energy (at rho_max), final rank, status.

@@ -7,8 +7,8 @@ Methods (``--methods``):
 
 - ``Ours``: the exact regularizer at Table 2's settings (gamma 0.075, tau 0.1, uncentred,
   rho 1 -> 1e4, mean-imputation start);
-- ``Ours (Nystroem m)``: the same with ``landmarks=m`` (``--landmarks``, seed 0), the opt-in
-  approximation of the kernel;
+- ``Ours (Nystroem m)``: the same with ``method="nystroem"``, ``options={"landmarks": m}``
+  (``--landmarks``, seed 0), the opt-in approximation of the kernel;
 - the peers with their knob chosen by 3-fold hold-out CV on the observed entries
   (:func:`nldr.experiments.table2.fit_peer`, Table 2's rows; ``cpu`` counts CV and refit);
 - ``mean`` and ``PPCA`` (q = 9) for reference.
@@ -50,7 +50,7 @@ def complete(method: str, W, mask, seed: int, landmarks: int):
         res = ppca_impute(W, mask, n_components=9)
         return res.x, "PPCA", res.nit, res.success
     if method in ("Ours", "Nystroem"):
-        extra = {} if method == "Ours" else {"landmarks": landmarks}
+        extra = {} if method == "Ours" else {"method": "nystroem", "options": {"landmarks": landmarks}}
         label = "Ours" if method == "Ours" else f"Ours (Nystroem {landmarks})"
         res = minimize_regularized(MaskedLeastSquares(W, mask), mean_impute(W, mask), **OURS, **extra)
         return res.x, label, res.nit, res.success

@@ -77,6 +77,7 @@ def run_case(name, frac, seed, widths, variants, data_dir, runs, step=10):
         for variant in variants:
             opts = dict(variant)
             depth_scale = opts.pop("depth_scale")
+            opts["options"] = {key: opts.pop(key) for key in ("tol", "gtol", "stage_tol")}  # solver options
             if depth_scale:
                 opts["variables"] = CameraFrameVariables(seq.R, mask, depth_scale)
             cpu0 = time.process_time()
@@ -84,7 +85,7 @@ def run_case(name, frac, seed, widths, variants, data_dir, runs, step=10):
             cpu = time.process_time() - cpu0
             row = {
                 "job": job_id, "width": width, "F": F, "depth_scale": depth_scale,
-                "rho_growth": opts["rho_growth"], "stage_tol": opts.get("stage_tol", opts["tol"]),
+                "rho_growth": opts["rho_growth"], "stage_tol": opts["options"]["stage_tol"],
                 "cpu_seconds": cpu, "nit": res.nit, "converged": res.success, "energy": res.fun,
                 "e3d": e3d(res.x, X_gt, P),
             }  # fmt: skip

@@ -82,9 +82,9 @@ MUTANTS = [
     ),
     Mutant(
         "isolation guard off by default",
-        "src/nldr/regularizer.py",
-        "    isolation_guard: bool = True,",
-        "    isolation_guard: bool = False,",
+        "src/nldr/_options.py",
+        "    isolation_guard: bool = True\n",
+        "    isolation_guard: bool = False\n",
         ("tests/test_regularizer.py::test_the_isolation_guard_is_on_by_default",),
     ),
     Mutant(

@@ -29,13 +29,13 @@ def one_blas_thread():
         yield
 
 
-def fold_error(W, mask, hidden, gamma, tau, **options):
-    """The hold-out error of one candidate on one fold, by hand."""
+def fold_error(W, mask, hidden, gamma, tau, method="exact", **options):
+    """The hold-out error of one candidate on one fold, by hand (``options``: the solver's)."""
     train = mask & ~hidden
     W_train = np.where(train, W, np.nan)
     res = minimize_regularized(
         MaskedLeastSquares(W_train, train), mean_impute(W_train, train), gamma=gamma, tau=tau,
-        isolation_guard=True, **options,
+        method=method, options={"isolation_guard": True, **options},
     )
     return np.mean((res.x - W)[hidden] ** 2)
 
@@ -135,7 +135,7 @@ def test_cv_score_is_the_hand_computed_holdout_error_and_the_refit_is_the_solver
     assert sel.tau_ == sel.cv_results_["tau"][best]
     refit = minimize_regularized(
         MaskedLeastSquares(W, mask), mean_impute(W, mask), gamma=sel.gamma_, tau=sel.tau_,
-        isolation_guard=True,
+        options={"isolation_guard": True},
     )
     np.testing.assert_array_equal(sel.result_.x, refit.x)
 
@@ -150,7 +150,7 @@ def test_warm_started_path_is_the_hand_chain_of_last_stage_solves():
         train = mask & ~h
         W_train = np.where(train, W, np.nan)
         term = MaskedLeastSquares(W_train, train)
-        opts = {"gamma": gamma, "isolation_guard": True, "tol": 1e-7, "gtol": 1e-4}
+        opts = {"gamma": gamma, "options": {"isolation_guard": True, "tol": 1e-7, "gtol": 1e-4}}
         first = minimize_regularized(term, mean_impute(W_train, train), tau=0.1, **opts)
         second = minimize_regularized(term, first.x, tau=1.0, rho0=1e4, **opts)
         errors[0.1].append(np.mean((first.x - W)[h] ** 2))
@@ -164,7 +164,7 @@ def test_warm_gamma_chains_the_first_solves_of_the_gammas_by_hand():
     _, W, mask = denoising_problem(n=25, d=5)
     g1, g2 = 0.5 * median_gamma(W, mask), median_gamma(W, mask)
     sel = select_regularizer(W, mask, taus=[0.1], gammas=[g2, g1], n_folds=2, warm_gamma=True)
-    opts = {"isolation_guard": True, "tol": 1e-7, "gtol": 1e-4, "tau": 0.1}
+    opts = {"options": {"isolation_guard": True, "tol": 1e-7, "gtol": 1e-4}, "tau": 0.1}
     errors = {g1: [], g2: []}
     for h in sel.folds_:
         train = mask & ~h
@@ -255,8 +255,9 @@ def test_isolation_safe_rho0_puts_the_threshold_at_one():
 def test_guard_changes_nothing_when_rho0_is_already_safe():
     _, W, mask = denoising_problem(n=25, d=5)
     term, S0 = MaskedLeastSquares(W, mask), mean_impute(W, mask)
-    plain = minimize_regularized(term, S0, gamma=0.5, tau=0.1, isolation_guard=False)  # rho0 1 >= 0.184
-    guarded = minimize_regularized(term, S0, gamma=0.5, tau=0.1, isolation_guard=True)
+    # rho0 = 1 >= tau sqrt(27/8) = 0.184: the guard has nothing to raise
+    plain = minimize_regularized(term, S0, gamma=0.5, tau=0.1, options={"isolation_guard": False})
+    guarded = minimize_regularized(term, S0, gamma=0.5, tau=0.1, options={"isolation_guard": True})
     np.testing.assert_array_equal(plain.x, guarded.x)
 
 
@@ -264,10 +265,12 @@ def test_hidden_entries_never_escape_along_the_default_tau_grid():
     _, W, mask = denoising_problem()
     term, S0, gamma = MaskedLeastSquares(W, mask), mean_impute(W, mask), median_gamma(W, mask)
     for tau in DEFAULT_TAUS:
-        res = minimize_regularized(term, S0, gamma=gamma, tau=tau, isolation_guard=True)
+        res = minimize_regularized(term, S0, gamma=gamma, tau=tau, options={"isolation_guard": True})
         assert within_observed_range(res.x, W, mask), f"hidden entries escaped at tau={tau}"
     # The test can fail: without the guard the paper's schedule (rho0 = 1) disperses them at tau = 100.
-    escaped = minimize_regularized(term, S0, gamma=gamma, tau=DEFAULT_TAUS[-1], isolation_guard=False)
+    escaped = minimize_regularized(
+        term, S0, gamma=gamma, tau=DEFAULT_TAUS[-1], options={"isolation_guard": False}
+    )
     assert not within_observed_range(escaped.x, W, mask)
 
 
@@ -336,14 +339,15 @@ def test_fold_landmarks_score_the_nystroem_fold_solves_by_hand_and_keep_the_refi
     sel = select_regularizer(W, mask, fold_landmarks=10, **common)
     folds = holdout_folds(mask, 2, random_state=0)
     for tau in taus:
-        errors = [fold_error(W, mask, h, gamma, tau, tol=1e-7, gtol=1e-4, landmarks=10) for h in folds]
+        fold = {"tol": 1e-7, "gtol": 1e-4}
+        errors = [fold_error(W, mask, h, gamma, tau, "nystroem", landmarks=10, **fold) for h in folds]
         exact = [fold_error(W, mask, h, gamma, tau, tol=1e-7, gtol=1e-4) for h in folds]
         row = sel.cv_results_[sel.cv_results_["tau"] == tau].iloc[0]
         assert row["mean_test_error"] == pytest.approx(np.mean(errors), rel=1e-12)
         assert np.mean(errors) != np.mean(exact)  # the option reaches the fold solves
     refit = minimize_regularized(
         MaskedLeastSquares(W, mask), mean_impute(W, mask), gamma=sel.gamma_, tau=sel.tau_,
-        isolation_guard=True,
+        options={"isolation_guard": True},
     )
     np.testing.assert_array_equal(sel.result_.x, refit.x)  # the refit is the exact solve
     # landmarks >= n is the exact kernel (minimize_regularized), so the selection is the exact one
@@ -356,14 +360,16 @@ def test_fold_landmarks_score_the_nystroem_fold_solves_by_hand_and_keep_the_refi
     with pytest.raises(ValueError, match="fold_landmarks"):
         select_regularizer(W, mask, fold_landmarks=0, **common)
     # refit_options reach the refit alone: the fold scores are unchanged, the refit is that call
-    path = {"warm_start": "nystroem", "landmarks": 8, "exact_stages": 2}
+    path = {"method": "nystroem-warm", "options": {"landmarks": 8, "exact_stages": 2}}
     warm = select_regularizer(W, mask, fold_landmarks=10, refit_options=path, **common)
     assert warm.cv_results_[cols].equals(sel.cv_results_[cols])
     refit = minimize_regularized(
         MaskedLeastSquares(W, mask), mean_impute(W, mask), gamma=warm.gamma_, tau=warm.tau_,
-        isolation_guard=True, **path,
+        method="nystroem-warm", options={"landmarks": 8, "exact_stages": 2, "isolation_guard": True},
     )
     np.testing.assert_array_equal(warm.result_.x, refit.x)
     assert warm.result_.n_stages == refit.n_stages > sel.result_.n_stages  # one Nystroem stage more
     with pytest.raises(ValueError, match="refit option 'tau'"):
         select_regularizer(W, mask, refit_options={"tau": 1.0}, **common)
+    with pytest.raises(ValueError, match="refit option 'isolation_guard'"):
+        select_regularizer(W, mask, refit_options={"options": {"isolation_guard": False}}, **common)

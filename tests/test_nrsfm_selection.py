@@ -112,7 +112,8 @@ def test_score_is_the_mean_squared_2d_distance_of_the_hidden_points():
 # The kernel method with known cameras (Table 3)
 # --------------------------------------------------------------------------------------------------
 
-SCHEDULE = {"rho0": 1e-3, "rho_growth": 10.0, "rho_max": 10.0, "max_inner": 100}  # Table 3's, capped
+# Table 3's schedule, its iterations capped
+SCHEDULE = {"rho0": 1e-3, "rho_growth": 10.0, "rho_max": 10.0, "options": {"max_inner": 100}}
 
 
 def test_kernel_scores_are_the_hand_computed_fold_solves_and_the_refit_is_the_solver():

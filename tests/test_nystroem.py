@@ -62,20 +62,24 @@ def test_every_sample_a_landmark_gives_the_exact_energy_and_kernel_factor(proble
 
 def test_landmark_solve_is_seeded_and_validated(problem):
     term, S, _ = problem
-    kw = dict(gamma=GAMMA, tau=TAU, rho_max=100.0, landmarks=15)
+    kw = dict(gamma=GAMMA, tau=TAU, rho_max=100.0, method="nystroem")
     with threadpool_limits(1):
-        a = minimize_regularized(term, S, landmark_seed=4, **kw)
-        b = minimize_regularized(term, S, landmark_seed=4, **kw)
-        c = minimize_regularized(term, S, landmark_seed=5, **kw)
+        a = minimize_regularized(term, S, options={"landmarks": 15, "landmark_seed": 4}, **kw)
+        b = minimize_regularized(term, S, options={"landmarks": 15, "landmark_seed": 4}, **kw)
+        c = minimize_regularized(term, S, options={"landmarks": 15, "landmark_seed": 5}, **kw)
     assert a.success and a.n_stages == 3
     np.testing.assert_array_equal(a.x, b.x)
     assert not np.array_equal(a.x, c.x)
     assert a.C.shape == (40, 40) and np.linalg.matrix_rank(a.C) == a.rank_history[-1] <= 15
     exact = minimize_regularized(term, S, gamma=GAMMA, tau=TAU, rho_max=100.0)
-    all_samples = minimize_regularized(term, S, gamma=GAMMA, tau=TAU, rho_max=100.0, landmarks=40)
+    all_samples = minimize_regularized(
+        term, S, gamma=GAMMA, tau=TAU, rho_max=100.0, method="nystroem", options={"landmarks": 40}
+    )
     np.testing.assert_array_equal(all_samples.x, exact.x)  # landmarks >= n: the exact solver
     with pytest.raises(ValueError, match="landmarks"):
-        minimize_regularized(term, S, gamma=GAMMA, tau=TAU, landmarks=0)
+        minimize_regularized(term, S, gamma=GAMMA, tau=TAU, method="nystroem", options={"landmarks": 0})
+    with pytest.raises(ValueError, match="method 'nystroem' needs the option"):
+        minimize_regularized(term, S, gamma=GAMMA, tau=TAU, method="nystroem")
 
 
 def test_an_isolated_sample_pays_what_the_exact_kernel_charges(problem):
@@ -99,5 +103,7 @@ def test_hidden_entries_stay_near_the_data_on_few_landmarks(m):
     _, W, mask = denoising_problem()
     term, S0, gamma = MaskedLeastSquares(W, mask), mean_impute(W, mask), median_gamma(W, mask)
     for tau in (0.01, 0.1, 1.0):
-        res = minimize_regularized(term, S0, gamma=gamma, tau=tau, landmarks=m)
+        res = minimize_regularized(
+            term, S0, gamma=gamma, tau=tau, method="nystroem", options={"landmarks": m}
+        )
         assert within_observed_range(res.x, W, mask), f"hidden entries escaped at tau={tau}, m={m}"

@@ -24,8 +24,8 @@ from nldr.regularizer import (
     optimal_kernel_factor,
     penalty_schedule,
     reduced_energy,
-    regularized_energy,
 )
+from nldr.regularizer import _regularized_energy as regularized_energy
 from nldr.result import CONVERGED, MAX_ITER, SolverResult
 from nldr.robust_kpca import closed_form_rank_penalty, rank_penalty_threshold
 
@@ -240,11 +240,11 @@ def test_default_solver_converges_and_reports_it(helix_completion):
 def test_iteration_limit_is_reported(helix_completion, solver):
     X, mask, S0 = helix_completion
     term = MaskedLeastSquares(X, mask)
-    kw = dict(gamma=0.5, tau=0.1, max_inner=1, rho_max=10.0)
+    kw = dict(gamma=0.5, tau=0.1, rho_max=10.0)
     if solver == "reduced":
-        res = minimize_regularized(term, S0, **kw)
+        res = minimize_regularized(term, S0, options={"max_inner": 1}, **kw)
     else:
-        res = minimize_regularized_alternation(term, S0, lm_max_iter=3, **kw)
+        res = minimize_regularized_alternation(term, S0, lm_max_iter=3, max_inner=1, **kw)
     assert not res.success and res.status == MAX_ITER
     assert "limit" in res.message and "rho=1" in res.message
     assert res.nit == 2 * 1
@@ -275,6 +275,8 @@ def test_iteration_limit_is_reported(helix_completion, solver):
 def test_bad_parameters_raise_naming_the_argument(small_problem, kwargs, name, solver):
     W, mask, S = small_problem
     args = dict(gamma=0.4, tau=0.1) | kwargs
+    if solver is minimize_regularized and name in ("max_inner", "tol", "eigensolver"):  # its options
+        args = dict(gamma=0.4, tau=0.1, options=kwargs)
     with pytest.raises(ValueError, match=name):
         solver(MaskedLeastSquares(W, mask), S, **args)
 
@@ -369,7 +371,7 @@ def test_solver_with_partial_decompositions_reproduces_the_reference_solve(large
     """Fixed seeds: the new default ("auto") against the original full-decomposition solver."""
     X, mask, S0 = large_helix_completion
     term = MaskedLeastSquares(X, mask)
-    ref = minimize_regularized(term, S0, gamma=0.5, tau=0.1, center=center, eigensolver="full")
+    ref = minimize_regularized(term, S0, gamma=0.5, tau=0.1, center=center, options={"eigensolver": "full"})
     new = minimize_regularized(term, S0, gamma=0.5, tau=0.1, center=center)
     assert ref.success and new.success
     np.testing.assert_array_equal(new.rank_history, ref.rank_history)
@@ -391,7 +393,8 @@ def test_closed_form_partial_and_full_agree():
         closed_form_rank_penalty(K, 2.0, 1.0, eigensolver="lanczos")
     with pytest.raises(ValueError, match="eigensolver"):
         S = K[:, :3]
-        minimize_regularized(MaskedLeastSquares(S, S > 0.5), S, gamma=1.0, tau=1.0, eigensolver=1)
+        term = MaskedLeastSquares(S, S > 0.5)
+        minimize_regularized(term, S, gamma=1.0, tau=1.0, options={"eigensolver": 1})
 
 
 def test_the_isolation_guard_is_on_by_default():
@@ -403,10 +406,10 @@ def test_the_isolation_guard_is_on_by_default():
     mask = rng.random(X.shape) > 0.3
     term = MaskedLeastSquares(np.where(mask, X, np.nan), mask)
     S0 = np.where(mask, X, np.nanmean(np.where(mask, X, np.nan), axis=0))
-    options = dict(gamma=2.0, tau=10.0, rho0=1.0, rho_max=1e3, max_inner=200)
-    default = minimize_regularized(term, S0, **options)
-    guarded = minimize_regularized(term, S0, isolation_guard=True, **options)
-    unguarded = minimize_regularized(term, S0, isolation_guard=False, **options)
+    kw = dict(gamma=2.0, tau=10.0, rho0=1.0, rho_max=1e3)
+    default = minimize_regularized(term, S0, options={"max_inner": 200}, **kw)
+    guarded = minimize_regularized(term, S0, options={"max_inner": 200, "isolation_guard": True}, **kw)
+    unguarded = minimize_regularized(term, S0, options={"max_inner": 200, "isolation_guard": False}, **kw)
     np.testing.assert_array_equal(default.x, guarded.x)
     assert not np.array_equal(default.x, unguarded.x)
 
@@ -441,6 +444,6 @@ def test_small_problems_run_on_one_blas_thread_unless_switched_off(monkeypatch, 
     S0 = np.where(mask, X, np.nanmean(np.where(mask, X, np.nan), axis=0))
     with threadpool_limits(2, user_api="blas"):
         callers = _blas_threads()  # 2, or 1 for a single-threaded BLAS another package loaded
-        minimize_regularized(term, S0, gamma=1.0, tau=0.1, rho_max=10.0, max_inner=20)
+        minimize_regularized(term, S0, gamma=1.0, tau=0.1, rho_max=10.0, options={"max_inner": 20})
     assert 2 in callers
     assert term.seen == ({1} if auto == "1" else callers)

@@ -97,13 +97,15 @@ def test_selection_full_inherits_selection_and_says_which_solves_are_approximate
 
 
 def test_exact_path_takes_more_exact_stages_at_low_p():
-    full = {"exact_path": {"warm_start": "nystroem", "landmarks": 100, "exact_stages": 1,
+    full = {"exact_path": {"method": "nystroem-warm", "options": {"landmarks": 100, "exact_stages": 1},
                            "low_p": {"max_p": 0.1, "exact_stages": 2}}}  # fmt: skip
-    assert module.exact_path(full, 0.05) == {"warm_start": "nystroem", "landmarks": 100, "exact_stages": 2}
-    assert module.exact_path(full, 0.1)["exact_stages"] == 2
-    assert module.exact_path(full, 0.25) == {"warm_start": "nystroem", "landmarks": 100, "exact_stages": 1}
+    warm = {"method": "nystroem-warm", "options": {"landmarks": 100, "exact_stages": 2}}
+    assert module.exact_path(full, 0.05) == warm
+    assert module.exact_path(full, 0.1)["options"]["exact_stages"] == 2
+    assert module.exact_path(full, 0.25) == {**warm, "options": {"landmarks": 100, "exact_stages": 1}}
+    assert full["exact_path"]["options"]["exact_stages"] == 1  # the settings are not changed
     assert module.exact_path({}, 0.25) == module.exact_path({"exact_path": None}, 0.05) == {}
     cfg = full_config()
     assert get("selection").settings(cfg).get("exact_path") is None  # 100 rows: the default path
-    assert get("selection_full").settings(cfg)["exact_path"]["warm_start"] == "nystroem"
+    assert get("selection_full").settings(cfg)["exact_path"]["method"] == "nystroem-warm"
     assert "Nystroem kernel and end with the exact solver" in get("selection_full").caption(cfg)

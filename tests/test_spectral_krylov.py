@@ -123,7 +123,7 @@ def test_auto_solve_with_krylov_reproduces_the_reference_solve(completion):
     X, mask, S0 = completion
     term = MaskedLeastSquares(X, mask)
     kw = dict(gamma=0.1, tau=0.1, rho_max=100.0)
-    ref = minimize_regularized(term, S0, eigensolver="full", **kw)
+    ref = minimize_regularized(term, S0, options={"eigensolver": "full"}, **kw)
     new = minimize_regularized(term, S0, **kw)
     assert ref.success and new.success
     assert new.rank_history[-1] <= KRYLOV_AUTO_FRACTION * X.shape[0]  # Lanczos throughout
@@ -139,13 +139,13 @@ def test_stage_tol_loosens_only_the_earlier_stages(completion):
     term = MaskedLeastSquares(X[:80], mask[:80])
     kw = dict(gamma=0.1, tau=0.1, rho_max=100.0)
     ref = minimize_regularized(term, S0[:80], **kw)
-    same = minimize_regularized(term, S0[:80], stage_tol=1e-10, **kw)
+    same = minimize_regularized(term, S0[:80], options={"stage_tol": 1e-10}, **kw)
     np.testing.assert_array_equal(same.x, ref.x)  # stage_tol = tol: the default, bit for bit
-    loose = minimize_regularized(term, S0[:80], stage_tol=1e-5, **kw)
+    loose = minimize_regularized(term, S0[:80], options={"stage_tol": 1e-5}, **kw)
     assert loose.success
     last = loose.stage_of_iteration == loose.n_stages - 1
     assert np.count_nonzero(~last) < np.count_nonzero(ref.stage_of_iteration < ref.n_stages - 1)
     # The last stage still runs to tol: its energy is a local minimum's; here (one basin) the same one.
     assert loose.stage_energy[-1] == pytest.approx(ref.stage_energy[-1], rel=1e-6)
     with pytest.raises(ValueError, match="stage_tol"):
-        minimize_regularized(term, S0[:80], stage_tol=0.0, **kw)
+        minimize_regularized(term, S0[:80], options={"stage_tol": 0.0}, **kw)

@@ -73,7 +73,9 @@ def test_the_solver_refuses_variables_with_landmarks_or_without_the_methods(prob
     A = CameraFrameVariables(seq.R, mask, 100.0)
     S0 = np.zeros(data_term.shape)
     with pytest.raises(ValueError, match="variables"):
-        minimize_regularized(data_term, S0, gamma=0.05, tau=1e-4, variables=A, landmarks=5)
+        minimize_regularized(
+            data_term, S0, gamma=0.05, tau=1e-4, variables=A, method="nystroem", options={"landmarks": 5}
+        )
     with pytest.raises(ValueError, match="variables"):
         minimize_regularized(data_term, S0, gamma=0.05, tau=1e-4, variables=object())
 

@@ -1,4 +1,4 @@
-"""Tests of ``minimize_regularized(warm_start="nystroem")``: Nystroem stages, then exact final stage(s)."""
+"""Tests of ``minimize_regularized(method="nystroem-warm")``: Nystroem stages, then exact final stage(s)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,16 @@ from nldr.data_terms import MaskedLeastSquares
 from nldr.regularizer import minimize_regularized, reduced_energy
 
 GAMMA, TAU = 0.3, 0.1
-WARM = {"warm_start": "nystroem", "landmarks": 12}
+WARM = {"method": "nystroem-warm", "options": {"landmarks": 12}}
+
+
+def warm(**options):
+    """``minimize_regularized`` keyword arguments of the warm path with further options."""
+    return {"method": "nystroem-warm", "options": {"landmarks": 12, **options}}
+
+
+def nystroem(m):
+    return {"method": "nystroem", "options": {"landmarks": m}}
 SCHEDULE = {"rho0": 1.0, "rho_growth": 10.0, "rho_max": 1e3}
 
 
@@ -27,20 +36,20 @@ def test_final_stages_are_the_exact_solvers_stages_from_the_nystroem_result(prob
     """The composite path is, bit for bit, a Nystroem solve over the first stages followed by the exact
     solver over the last ones from its result: so its answer meets the exact solver's stopping test."""
     term, S0 = problem
-    res = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **WARM, exact_stages=exact_stages)
+    res = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **warm(exact_stages=exact_stages))
     rhos = [1.0, 10.0, 100.0, 1e3]
     first_exact = len(rhos) - exact_stages  # solved on the Nystroem kernel, then again exactly
-    warm = minimize_regularized(
-        term, S0, gamma=GAMMA, tau=TAU, rho0=1.0, rho_max=rhos[first_exact], landmarks=12
+    first = minimize_regularized(
+        term, S0, gamma=GAMMA, tau=TAU, rho0=1.0, rho_max=rhos[first_exact], **nystroem(12)
     )
-    exact = minimize_regularized(term, warm.x, gamma=GAMMA, tau=TAU, rho0=rhos[first_exact], rho_max=1e3)
+    exact = minimize_regularized(term, first.x, gamma=GAMMA, tau=TAU, rho0=rhos[first_exact], rho_max=1e3)
     np.testing.assert_array_equal(res.x, exact.x)
     assert res.fun == exact.fun
     np.testing.assert_array_equal(res.C, exact.C)
     assert res.n_stages == len(rhos) + 1
     np.testing.assert_array_equal(res.rho_history, rhos[: first_exact + 1] + rhos[first_exact:])
-    np.testing.assert_array_equal(res.stage_energy, np.concatenate([warm.stage_energy, exact.stage_energy]))
-    assert res.nit == warm.nit + exact.nit
+    np.testing.assert_array_equal(res.stage_energy, np.concatenate([first.stage_energy, exact.stage_energy]))
+    assert res.nit == first.nit + exact.nit
     # ``fun`` is the exact reduced energy (not the Nystroem one) at the returned x.
     value, _ = reduced_energy(res.x, term, gamma=GAMMA, tau=TAU, rho=1e3, eigensolver="full")
     assert res.fun == pytest.approx(value, rel=1e-12)
@@ -59,8 +68,8 @@ def test_final_stage_is_a_stationary_point_of_the_exact_energy(problem):
 def test_option_off_and_all_exact_match_the_default_bit_for_bit(problem):
     term, S0 = problem
     base = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE)
-    for options in ({"warm_start": None, "exact_stages": 3}, {"warm_start": "nystroem", "exact_stages": 4},
-                    {"warm_start": "nystroem", "landmarks": 40}):  # fmt: skip
+    for options in ({"method": "exact"}, {"method": "nystroem-warm", "options": {"exact_stages": 4}},
+                    {"method": "nystroem-warm", "options": {"landmarks": 40}}, nystroem(40)):  # fmt: skip
         other = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **options)
         np.testing.assert_array_equal(other.x, base.x)
         assert other.fun == base.fun and other.nit == base.nit
@@ -68,20 +77,20 @@ def test_option_off_and_all_exact_match_the_default_bit_for_bit(problem):
 
 def test_warm_start_is_validated(problem):
     term, S0 = problem
-    with pytest.raises(ValueError, match="warm_start"):
-        minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, warm_start="landmarks")
+    with pytest.raises(ValueError, match="method must be one of"):
+        minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, method="landmarks")
     for bad in (0, -1, 1.5, True):
         with pytest.raises(ValueError, match="exact_stages"):
-            minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, warm_start="nystroem", exact_stages=bad)
+            minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **warm(exact_stages=bad))
     with pytest.raises(ValueError, match="landmarks"):
-        minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, warm_start="nystroem", landmarks=0)
+        minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **warm(landmarks=0))
 
 
 def test_all_exact_stages_with_few_landmarks_is_the_exact_solver(problem):
     """exact_stages >= the number of stages: the exact solver throughout, even with landmarks < n."""
     term, S0 = problem
     base = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE)
-    other = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **WARM, exact_stages=4)
+    other = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **warm(exact_stages=4))
     np.testing.assert_array_equal(other.x, base.x)
     assert other.fun == base.fun and other.nit == base.nit
 
@@ -92,7 +101,7 @@ def test_exact_tol_stops_the_exact_stage_on_an_energy_plateau(problem):
     term, S0 = problem
     full = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **WARM)
     exact_tol = 3e-4
-    cut = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **WARM, exact_tol=exact_tol)
+    cut = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **warm(exact_tol=exact_tol))
     last = cut.stage_of_iteration == cut.n_stages - 1
     full_last = full.energy_history[full.stage_of_iteration == full.n_stages - 1]
     energies = cut.energy_history[last]
@@ -102,7 +111,7 @@ def test_exact_tol_stops_the_exact_stage_on_an_energy_plateau(problem):
     np.testing.assert_array_equal(energies, full_last[:k])
     np.testing.assert_array_equal(cut.energy_history[~last], full.energy_history[: (~last).sum()])
     # E_0: the exact energy at the Nystroem answer (the stage's start).
-    start = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, landmarks=12)
+    start = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **nystroem(12))
     e0, _ = reduced_energy(start.x, term, gamma=GAMMA, tau=TAU, rho=1e3)
     history = np.concatenate([[e0], energies])
     decrease = history[:-10] - history[10:]  # over 10 iterations, ending at iterations 10 .. k
@@ -118,9 +127,9 @@ def test_last_landmarks_changes_only_the_last_nystroem_stage(problem):
     """last_landmarks = m2: the warm start's stages are the m-landmark solve up to the last Nystroem
     stage, then that stage on m2 landmarks (same seed), then the exact stage."""
     term, S0 = problem
-    res = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **WARM, last_landmarks=20)
-    early = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, rho0=1.0, rho_max=100.0, landmarks=12)
-    late = minimize_regularized(term, early.x, gamma=GAMMA, tau=TAU, rho0=1e3, rho_max=1e3, landmarks=20)
+    res = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **SCHEDULE, **warm(last_landmarks=20))
+    early = minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, rho0=1.0, rho_max=100.0, **nystroem(12))
+    late = minimize_regularized(term, early.x, gamma=GAMMA, tau=TAU, rho0=1e3, rho_max=1e3, **nystroem(20))
     exact = minimize_regularized(term, late.x, gamma=GAMMA, tau=TAU, rho0=1e3, rho_max=1e3)
     np.testing.assert_array_equal(res.x, exact.x)
     np.testing.assert_array_equal(res.stage_energy, np.concatenate([early.stage_energy, late.stage_energy,
@@ -133,7 +142,22 @@ def test_exact_tol_and_last_landmarks_are_validated(problem):
     bad_values = (("exact_tol", 0.0), ("exact_tol", -1e-6), ("last_landmarks", 0), ("last_landmarks", 2.5))
     for name, bad in bad_values:
         with pytest.raises(ValueError, match=name):
-            minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **WARM, **{name: bad})
-    for name, value in (("exact_tol", 1e-6), ("last_landmarks", 20)):
-        with pytest.raises(ValueError, match="warm_start"):
-            minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **{name: value})
+            minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, **warm(**{name: bad}))
+    for method in ("exact", "nystroem"):  # options of the warm path alone: refused, naming the method
+        for name, value in (("exact_tol", 1e-6), ("last_landmarks", 20), ("exact_stages", 2)):
+            options = {name: value} | ({"landmarks": 12} if method == "nystroem" else {})
+            with pytest.raises(ValueError, match=f"method '{method}' takes no option '{name}'"):
+                minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, method=method, options=options)
+
+
+def test_every_method_lists_its_options_when_one_is_unknown(problem):
+    term, S0 = problem
+    for method, options in (("exact", {}), ("nystroem", {"landmarks": 12}), ("nystroem-warm", {})):
+        with pytest.raises(ValueError, match=f"method '{method}' takes no option 'landmark'.*max_inner"):
+            options = {**options, "landmark": 5}
+            minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, method=method, options=options)
+    with pytest.raises(ValueError, match="method 'nystroem' takes no option 'eigensolver'"):
+        options = {"landmarks": 12, "eigensolver": "full"}
+        minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, method="nystroem", options=options)
+    with pytest.raises(ValueError, match="options must be a mapping"):
+        minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, options=[("tol", 1e-8)])

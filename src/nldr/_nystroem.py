@@ -1,6 +1,6 @@
 """The regularizer's reduced energy on a Nystroem (landmark) approximation of the kernel (opt-in).
 
-Inner functions of :func:`nldr.regularizer.minimize_regularized` with ``landmarks=m``; they trust their
+Inner functions of :func:`nldr.regularizer.minimize_regularized` with ``method="nystroem"``; they trust their
 input.
 
 Maintenance note (the approximation and its gradient). Fix m landmark points Z (m, d) for one penalty

@@ -29,7 +29,7 @@ first stage already keeps an eigenvalue of 1 (lambda_star(tau, rho0) <= 1), an i
 phi(1) ~ tau, more than the tau / (2 sqrt(lambda_1)) it costs inside a cluster of leading eigenvalue
 lambda_1 > 1/4, and dispersal no longer pays. lambda_star = 3 (b^2/2)^(1/3) <= 1 with b = tau/(2 rho)
 holds iff b <= sqrt(2/27), i.e. rho >= tau sqrt(27/8) (:func:`isolation_safe_rho0`); later stages have a
-larger rho and a lower threshold. ``isolation_guard=True`` (the default) raises rho0 to that value.
+larger rho and a lower threshold. The option ``isolation_guard`` (on by default) raises rho0 to that value.
 It changes nothing when rho0 >= tau sqrt(27/8) already, which holds for every table of the paper
 (Table 2: tau = 0.1, rho0 = 1 >= 0.184; Tables 3-4: tau = 1e-4, rho0 = 1e-3 >= 1.8e-4), so their
 results stay bit for bit.
@@ -38,11 +38,13 @@ results stay bit for bit.
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from ._nystroem import landmark_indices, landmark_map, nystroem_factor, nystroem_value_grad
+from ._options import ExactOptions, NystroemOptions, NystroemWarmOptions, solver_options
 from ._reduced import (
     KRYLOV_AUTO_FRACTION,
     RankHint,
@@ -56,7 +58,7 @@ from ._reduced import (
 from ._schedule import isolation_safe_rho0, penalty_schedule
 from ._spectral import check_eigensolver, spectrum
 from ._threads import blas_threads_for
-from ._validation import as_float_matrix, check_count, check_positive
+from ._validation import as_float_matrix, check_positive
 from .data_terms import DataTerm, check_start
 from .kernels import center_kernel
 from .result import CONVERGED, INACCURATE, MAX_ITER, SolverResult
@@ -65,13 +67,15 @@ __all__ = [
     "RegularizerResult",
     "minimize_regularized",
     "penalty_schedule",
-    "regularized_energy",
     "reduced_energy",
     "optimal_kernel_factor",
     "isolation_safe_rho0",
     "penalty_method",
     "KRYLOV_AUTO_FRACTION",
     "StageInfo",
+    "ExactOptions",
+    "NystroemOptions",
+    "NystroemWarmOptions",
 ]
 
 
@@ -203,7 +207,7 @@ def optimal_kernel_factor(
     return kernel_factor(l, U)
 
 
-def regularized_energy(
+def _regularized_energy(
     S, C, data_term: DataTerm, *, gamma: float, tau: float, rho: float, center: bool = False
 ) -> float:
     """The full energy ``f(S) + rho/2 ||K(S) - C^T C||_F^2 + tau ||C||_*`` at a given (S, C).
@@ -297,29 +301,29 @@ def penalty_method(
     )
 
 
-def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, eigensolver, start, report):
+def _run_stages(S, data_term, gamma, tau, center, rhos, opts, plan, start, callback, verbose, variables):
     """One L-BFGS solve per penalty weight, warm-started; the closed-form C after each. No validation.
 
-    ``tols`` is ``(tol of every stage but the last, tol of the last)``; ``report`` holds the
-    ``callback``, ``verbose``, ``landmarks`` (None or ``(m, seed)``) and ``approximate_stages`` (how
-    many leading stages use the Nystroem kernel when ``landmarks`` is set; the rest are exact) options,
-    and optionally ``last_landmarks`` (landmarks of the last Nystroem stage) and ``exact_tol`` (the
-    plateau test of the exact stages after Nystroem ones, :func:`nldr._reduced.lbfgs_minimize`).
-    ``rhos`` may repeat a weight (a Nystroem stage and then the exact stage at the same rho).
+    ``opts`` is the method's options record (:mod:`nldr._options`); ``plan`` is None (the exact kernel
+    throughout) or ``(landmarks, approximate_stages, last_landmarks, plateau)``: the first
+    ``approximate_stages`` stages use the Nystroem kernel on ``landmarks`` landmarks
+    (``last_landmarks`` for the last of them), the rest are exact with the plateau test ``plateau``
+    (:func:`nldr._reduced.lbfgs_minimize`). ``rhos`` may repeat a weight (a Nystroem stage and then
+    the exact stage at the same rho).
     """
     hint = RankHint()
-    landmarks = report.pop("landmarks")
-    variables = report.pop("variables", None)
-    n_approx = report.pop("approximate_stages", len(rhos))
-    m_last, plateau = report.pop("last_landmarks", None), report.pop("exact_tol", None)
+    tols, max_inner, gtol = opts.tols, opts.max_inner, opts.gtol
+    eigensolver = getattr(opts, "eigensolver", "auto")
+    m, n_approx, m_last, plateau = plan if plan is not None else (None, 0, None, None)
     done = [0]  # stages finished so far (stage_end closes each)
-    if landmarks is not None:
-        idx = landmark_indices(S.shape[0], *landmarks)
-        idx_last = idx if m_last is None else landmark_indices(S.shape[0], m_last, landmarks[1])
+    if plan is not None:
+        seed = opts.landmark_seed
+        idx = landmark_indices(S.shape[0], m, seed)
+        idx_last = idx if m_last is None else landmark_indices(S.shape[0], m_last, seed)
         frozen = {}
 
     def nystroem_here():
-        return landmarks is not None and done[0] < n_approx
+        return done[0] < n_approx
 
     def stage(S, rho, energies):
         tol = tols[1] if rho == rhos[-1] else tols[0]
@@ -344,7 +348,20 @@ def _run_stages(S, data_term, gamma, tau, center, rhos, max_inner, tols, gtol, e
         value, _, (lam, U, l) = reduced_value_grad(S, data_term, gamma, tau, rho, center, eigensolver, hint)
         return value, kernel_factor(l, U), int(np.count_nonzero(l))
 
-    return penalty_method(S, rhos, stage, stage_end, start=start, **report)
+    return penalty_method(S, rhos, stage, stage_end, start=start, callback=callback, verbose=verbose)
+
+
+def _stage_plan(method, opts, n, rhos):
+    """``(rhos, plan)`` for :func:`_run_stages` from the method, its options, n and the schedule."""
+    if method == "exact" or opts.landmarks >= n:
+        return rhos, None  # every sample a landmark: the exact kernel costs less
+    if method == "nystroem":
+        return rhos, (opts.landmarks, len(rhos), None, None)
+    if opts.exact_stages >= len(rhos):
+        return rhos, None  # every stage exact: the exact solver throughout
+    first_exact = len(rhos) - opts.exact_stages  # solved twice: on the Nystroem kernel, then exactly
+    plan = (opts.landmarks, first_exact + 1, opts.last_landmarks, opts.exact_tol)
+    return rhos[: first_exact + 1] + rhos[first_exact:], plan
 
 
 def minimize_regularized(
@@ -353,25 +370,15 @@ def minimize_regularized(
     *,
     gamma: float,
     tau: float,
+    method: str = "exact",
+    options: Mapping | None = None,
     center: bool = False,
     rho0: float = 1.0,
     rho_growth: float = 10.0,
     rho_max: float = 1e4,
-    max_inner: int | None = None,
-    tol: float = 1e-10,
-    gtol: float = 1e-6,
-    stage_tol: float | None = None,
-    eigensolver: str = "auto",
-    isolation_guard: bool = True,
-    verbose: bool = False,
     callback=None,
-    landmarks: int | None = None,
-    landmark_seed: int = 0,
+    verbose: bool = False,
     variables=None,
-    warm_start: str | None = None,
-    exact_stages: int = 1,
-    exact_tol: float | None = None,
-    last_landmarks: int | None = None,
 ) -> RegularizerResult:
     """Minimise ``f(S) + rho/2 ||K(S) - C^T C||_F^2 + tau ||C||_*`` by the penalty method.
 
@@ -390,79 +397,85 @@ def minimize_regularized(
         RBF inverse squared width, ``K_ij = exp(-gamma ||s_i - s_j||^2)``.
     tau : float > 0
         Trace-norm weight (the paper uses 0.1 for matrix completion on oil flow).
+    method : {"exact", "nystroem", "nystroem-warm"}, default="exact"
+        How the kernel is evaluated:
+
+        - "exact": the kernel itself in every stage (the default and the reference).
+        - "nystroem": opt-in approximation. The kernel is replaced by its Nystroem approximation on
+          ``options["landmarks"]`` landmark samples (a random subset drawn from
+          ``options["landmark_seed"]``, re-read from S at the start of every stage; module
+          :mod:`nldr._nystroem`). One evaluation then costs O(n m^2) instead of O(n^2 r) plus an
+          n x n eigensolver, but the minimiser is not the exact one (its SSE against the exact
+          solve: docs/PERFORMANCE.md). ``landmarks >= n_samples``: the exact kernel.
+        - "nystroem-warm": opt-in faster path to an exact answer. With k = ``options["exact_stages"]``,
+          the stages up to the k-th last run on the Nystroem kernel (``landmarks`` landmarks, default
+          100), then the last k stages with the exact kernel, the first of them warm-started from the
+          Nystroem answer at the same rho (so one stage more: ``n_stages`` and ``rho_history`` show
+          both). The returned ``x``, ``fun`` and ``C`` are the exact solver's, meeting its stopping
+          test at rho_max, but possibly in another local minimum than the default path's (CPU, energy
+          and SSE against it: docs/PERFORMANCE.md). With k >= the number of stages, or
+          ``landmarks >= n_samples``: the exact solver throughout. Narrow kernels: a sample far from
+          every landmark pays its unspanned residual (:mod:`nldr._nystroem`), so its unobserved
+          entries do not escape (1000 oil rows, gamma 0.29: SSE 144 against 142 on "exact").
+    options : mapping, optional
+        The method's options; an option the method does not take is a ValueError naming the method
+        and listing its options. Every method takes the stopping options:
+
+        - ``max_inner`` (int, default 3000): per-stage limit of L-BFGS iterations.
+        - ``tol`` (float > 0, default 1e-10): stage convergence (the L-BFGS ``ftol``): relative energy
+          decrease per iteration, ``(E_k - E_{k+1}) / max(|E_k|, |E_{k+1}|, 1) <= tol``.
+        - ``gtol`` (float > 0, default 1e-6): L-BFGS also stops when the largest gradient entry is
+          below gtol.
+        - ``stage_tol`` (float > 0, default None): ``tol`` of every stage but the last; None means
+          ``tol``. The earlier stages only provide the next one's start: 1e-7 saves a third of the
+          iterations, but a start further from the previous minimum can lead to another local minimum
+          (docs/PERFORMANCE.md, bench_scale.py).
+        - ``isolation_guard`` (bool, default True): start the schedule at
+          ``max(rho0, isolation_safe_rho0(tau))`` (and end it no lower), so that the first stage
+          cannot push unobserved coordinates away from the data (module maintenance note). It changes
+          nothing when rho0 is already >= tau sqrt(27/8), as in every table of the paper; False runs
+          the given schedule as it is (to study the escape).
+
+        "exact" also takes ``eigensolver`` ({"auto", "partial", "krylov", "full"}, default "auto"):
+        the C-step's decomposition. Only eigenpairs above the cubic's threshold survive, so "partial"
+        computes just those (LAPACK MRRR) and forms dE/dK = rho (K - C^T C) from them; "krylov" finds
+        the same ones by Lanczos (ARPACK), cheaper when they are few; "full" decomposes the whole
+        kernel (the reference); "auto" uses "full" below n = 300; from there "krylov" while the
+        previous evaluation kept at most :data:`KRYLOV_AUTO_FRACTION` of the spectrum, "partial" up to
+        a quarter, else "full". All agree to rounding (tests/test_regularizer.py,
+        tests/test_spectral_krylov.py).
+
+        "nystroem" also takes ``landmarks`` (int >= 1, required) and ``landmark_seed`` (int >= 0,
+        default 0, the seed of the landmark draw).
+
+        "nystroem-warm" also takes ``landmarks`` (default 100), ``landmark_seed`` (default 0),
+        ``eigensolver`` (of its exact stages), ``exact_stages`` (k above, int >= 1, default 1; 1000
+        oil rows: k = 2 needed at p = 0.05, PERFORMANCE.md), ``exact_tol`` (float > 0, default None:
+        the exact stages after the Nystroem ones also stop once the energy fell by at most
+        ``exact_tol``, relative, per iteration on average over the last 10 iterations; the answer then
+        need not meet the ``tol`` test, its energy gap to the converged one on 1000 oil rows:
+        docs/PERFORMANCE.md) and ``last_landmarks`` (int >= 1, default None: the number of landmarks
+        of the last Nystroem stage, drawn from ``landmark_seed``; None means ``landmarks``).
     center : bool, default=False
         Double-centre the kernel (H K H). The uncentred kernel reproduces the paper's Table 2.
     rho0, rho_growth, rho_max : float, defaults 1.0, 10.0, 1e4
         The penalty schedule (:func:`penalty_schedule`): first weight, factor between stages (> 1),
         last weight (>= rho0).
-    max_inner : int, optional
-        Per-stage limit of L-BFGS iterations; None (default) means 3000.
-    tol : float > 0, default=1e-10
-        Stage convergence (the L-BFGS ``ftol``): relative energy decrease per iteration,
-        ``(E_k - E_{k+1}) / max(|E_k|, |E_{k+1}|, 1) <= tol``.
-    gtol : float > 0, default=1e-6
-        L-BFGS also stops when the largest gradient entry is below gtol.
-    stage_tol : float > 0, optional
-        ``tol`` of every stage but the last; None (default) means ``tol``. The earlier stages only
-        provide the next one's start: 1e-7 saves a third of the iterations, but a start further from
-        the previous minimum can lead to another local minimum (docs/PERFORMANCE.md, bench_scale.py).
-    eigensolver : {"auto", "partial", "krylov", "full"}, default="auto"
-        The C-step's decomposition. Only eigenpairs above the cubic's threshold survive, so
-        "partial" computes just those (LAPACK MRRR) and forms dE/dK = rho (K - C^T C) from them;
-        "krylov" finds the same ones by Lanczos (ARPACK), cheaper when they are few;
-        "full" decomposes the whole kernel (the original implementation, kept as the reference);
-        "auto" uses "full" below n = 300; from there "krylov" while the previous evaluation kept at
-        most :data:`KRYLOV_AUTO_FRACTION` of the spectrum, "partial" up to a quarter, else "full".
-        All agree to rounding (tests/test_regularizer.py, tests/test_spectral_krylov.py).
-    isolation_guard : bool, default=True
-        Start the schedule at ``max(rho0, isolation_safe_rho0(tau))`` (and end it no lower), so that
-        the first stage cannot push unobserved coordinates away from the data (module maintenance
-        note). It changes nothing when rho0 is already >= tau sqrt(27/8), as in every table of the
-        paper; False runs the given schedule as it is (to study the escape).
-    verbose : bool, default=False
-        Print one line per penalty stage: rho, iterations, energy, rank and seconds.
     callback : callable, optional
         Called after every stage with a :class:`StageInfo` (stage index, rho, iterations, energy,
         rank, converged, seconds, a copy of S). If it returns True, the solver stops there and
         returns that stage's estimate with status :data:`~nldr.result.INACCURATE` (the schedule was
         not completed) and the stopping stage named in ``message``; after the last stage it
         changes nothing.
-    landmarks : int, optional
-        Opt-in approximation: replace the kernel by its Nystroem approximation on this many landmark
-        samples (a random subset drawn from ``landmark_seed``, re-read from S at the start of every
-        stage; module :mod:`nldr._nystroem`). One evaluation then costs O(n m^2) instead of O(n^2 r)
-        plus an n x n eigensolver, but the minimiser is not the exact one (its SSE against the exact
-        solve: docs/PERFORMANCE.md). None (default), or ``landmarks >= n_samples``: the exact kernel.
-    landmark_seed : int, default=0
-        Seed of the landmark draw.
+    verbose : bool, default=False
+        Print one line per penalty stage: rho, iterations, energy, rank and seconds.
     variables : object, optional
         A fixed invertible linear change of variables S = A(Y) in which L-BFGS runs (a
         preconditioner: the minimisers are the same, the conditioning is not). It provides
         ``to_samples(Y) -> S``, ``to_variables(S) -> Y`` (the inverse) and
         ``gradient_to_variables(G) -> A^T(G)``, all on arrays of S's shape (e.g.
-        :class:`nldr.nrsfm.CameraFrameVariables`). None (default): L-BFGS on S, as before.
-        Not with ``landmarks``.
-    warm_start : {None, "nystroem"}, default=None
-        Opt-in faster path to an exact answer. "nystroem": with k = ``exact_stages``, run the stages
-        up to the k-th last on the Nystroem kernel (``landmarks`` landmarks, default 100), then the
-        last k stages with the exact kernel, the first of them warm-started from the Nystroem answer
-        at the same rho (so one stage more: ``n_stages`` and ``rho_history`` show both). The returned
-        ``x``, ``fun`` and ``C`` are the exact solver's, meeting its stopping test at rho_max, but
-        possibly in another local minimum than the default path's (CPU, energy and SSE against it:
-        docs/PERFORMANCE.md). With k >= the number of stages, or ``landmarks >= n_samples``: the
-        exact solver throughout. None: the default path, unchanged. Narrow kernels: a sample far
-        from every landmark pays its unspanned residual (:mod:`nldr._nystroem`), so its unobserved
-        entries do not escape (1000 oil rows, gamma 0.29: SSE 144 against 142 on the default path).
-    exact_stages : int >= 1, default=1
-        k above, with ``warm_start="nystroem"`` (1000 oil rows: k = 2 needed at p = 0.05; PERFORMANCE.md).
-    exact_tol : float > 0, optional
-        With ``warm_start="nystroem"``: the exact stages after the Nystroem ones also stop once the
-        energy fell by at most ``exact_tol`` (relative) per iteration on average over the last 10
-        iterations; the answer then need not meet the ``tol`` test (its energy gap to the converged
-        one, 1000 oil rows: docs/PERFORMANCE.md). None (default): ``tol`` and ``gtol`` only.
-    last_landmarks : int, optional
-        With ``warm_start="nystroem"``: the number of landmarks of the last Nystroem stage (drawn from
-        ``landmark_seed``); None (default): ``landmarks``.
+        :class:`nldr.nrsfm.CameraFrameVariables`). None (default): L-BFGS on S. Only with
+        ``method="exact"``.
 
     Returns
     -------
@@ -473,44 +486,22 @@ def minimize_regularized(
     Raises
     ------
     ValueError
-        If ``data_term`` is not a DataTerm, ``S0`` has the wrong shape or non-finite entries, or a
-        parameter is out of range (the message names it).
+        If ``data_term`` is not a DataTerm, ``S0`` has the wrong shape or non-finite entries, a
+        parameter is out of range, ``method`` is unknown or ``options`` holds an option the method
+        does not take (the message names it).
     """
     start = time.perf_counter()
     S, gamma, tau = _check_problem(data_term, S0, gamma, tau, name_S="S0")
-    floor = isolation_safe_rho0(tau) if isolation_guard else None
+    opts = solver_options(method, options)
+    floor = isolation_safe_rho0(tau) if opts.isolation_guard else None
     rhos = penalty_schedule(rho0, rho_growth, rho_max, floor=floor)
-    max_inner = check_count(3000 if max_inner is None else max_inner, "max_inner")
-    tol, gtol = check_positive(tol, "tol"), check_positive(gtol, "gtol")
-    stage_tol = tol if stage_tol is None else check_positive(stage_tol, "stage_tol")
-    eigensolver = check_eigensolver(eigensolver)
     if callback is not None and not callable(callback):
         raise ValueError(f"callback must be callable or None; got {type(callback).__name__}")
-    if variables is not None and (landmarks is not None or not hasattr(variables, "gradient_to_variables")):
-        raise ValueError("variables must be a change of variables (see the docstring), without landmarks")
-    if warm_start not in (None, "nystroem"):
-        raise ValueError(f"warm_start must be None or 'nystroem'; got {warm_start!r}")
-    exact_stages = check_count(exact_stages, "exact_stages")
-    exact_tol = None if exact_tol is None else check_positive(exact_tol, "exact_tol")
-    last_landmarks = None if last_landmarks is None else check_count(last_landmarks, "last_landmarks")
-    if (exact_tol is not None or last_landmarks is not None) and warm_start != "nystroem":
-        raise ValueError("exact_tol and last_landmarks need warm_start='nystroem'")
-    if warm_start == "nystroem" and landmarks is None:
-        landmarks = 100
-    if landmarks is not None and check_count(landmarks, "landmarks") < S.shape[0]:
-        landmarks = (landmarks, int(landmark_seed))
-    else:
-        landmarks = None  # every sample a landmark: the exact kernel costs less
-    if warm_start == "nystroem" and exact_stages >= len(rhos):
-        landmarks = None  # every stage exact: the exact solver throughout
-    report = {"callback": callback, "verbose": bool(verbose), "landmarks": landmarks}
-    if warm_start == "nystroem" and landmarks is not None:
-        first_exact = len(rhos) - exact_stages  # solved twice: on the Nystroem kernel, then exactly
-        report["approximate_stages"] = first_exact + 1
-        report |= {"exact_tol": exact_tol, "last_landmarks": last_landmarks}
-        rhos = rhos[: first_exact + 1] + rhos[first_exact:]
+    if variables is not None and (method != "exact" or not hasattr(variables, "gradient_to_variables")):
+        raise ValueError("variables must be a change of variables (see the docstring), with method='exact'")
+    rhos, plan = _stage_plan(method, opts, S.shape[0], rhos)
     with blas_threads_for(S.shape[0]):  # one BLAS thread on small problems (nldr._threads)
         return _run_stages(
-            S.copy(), data_term, gamma, tau, bool(center), rhos, max_inner, (stage_tol, tol), gtol,
-            eigensolver, start, report | ({} if variables is None else {"variables": variables}),
+            S.copy(), data_term, gamma, tau, bool(center), rhos, opts, plan, start, callback, bool(verbose),
+            variables,
         )  # fmt: skip

@@ -43,13 +43,15 @@ METHODS = (PAPER, CV, ORACLE, "PPCA (CV)", "PKPCA (CV)", "RKPCA (CV)") + PEER_RO
 
 
 def exact_path(settings, p: float) -> dict:
-    """Options of ``minimize_regularized`` for the exact solves at missing share p (config
-    ``exact_path``): {} for the default path, else Nystroem stages then the exact solver's last
-    ``exact_stages`` (``low_p.exact_stages`` at p <= ``low_p.max_p``)."""
+    """Keyword arguments of ``minimize_regularized`` for the exact solves at missing share p (config
+    ``exact_path``): {} for the default path, else ``method="nystroem-warm"`` with its options: Nystroem
+    stages then the exact solver's last ``exact_stages`` (``low_p.exact_stages`` at p <= ``low_p.max_p``)."""
     path = dict(settings.get("exact_path") or {})
     low = path.pop("low_p", None)
+    if path:
+        path["options"] = dict(path["options"])
     if low is not None and p <= low["max_p"]:
-        path["exact_stages"] = low["exact_stages"]
+        path["options"]["exact_stages"] = low["exact_stages"]
     return path
 
 
@@ -248,8 +250,9 @@ class SelectionFull(Selection):
         )
         path = s.get("exact_path")
         if path:
+            m = path["options"]["landmarks"]
             folds += (
-                f" The exact solves start on a {path['landmarks']}-landmark Nystroem kernel and end with the "
+                f" The exact solves start on a {m}-landmark Nystroem kernel and end with the "
                 "exact solver's last penalty stage(s) (same stopping test; docs/PERFORMANCE.md#scale)."
             )
         skipped = [b for b in ("PPCA", "PKPCA", "RKPCA") if b not in s["baselines"]]

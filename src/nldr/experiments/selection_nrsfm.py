@@ -166,6 +166,8 @@ class SelectionNRSfM(MocapExperiment):
         tnh_options = {k: v for k, v in t["tnh"].items() if k != "solver"}  # ADMM exact fit, as Table 3
         schedule = dict(t["regularizer"])
         depth_scale = schedule.pop("depth_scale", None)  # Table 3's camera-frame L-BFGS, as run_sequence
+        stopping = ("max_inner", "tol", "gtol", "stage_tol")  # the solver's options, as run_sequence's
+        schedule["options"] = {key: schedule.pop(key) for key in stopping if key in schedule}
         solve = dict(schedule)
         if depth_scale is not None:
             solve["variables"] = CameraFrameVariables(R, mask, depth_scale)

@@ -366,7 +366,7 @@ class Table2(Experiment):
         skip = set(settings.get("skip", []))
         methods = [m for m in METHODS if m not in skip]
         rows = run_mask(X, p=p, seed=seed, params=params, methods=methods, progress=progress)
-        landmarks = settings.get("ours", {}).get("landmarks")
+        landmarks = settings.get("ours", {}).get("options", {}).get("landmarks")
         if landmarks is not None:  # not the exact solve: the label says so wherever the row appears
             rows["method"] = rows["method"].replace("Ours", f"Ours (Nystroem {landmarks})")
         peers = settings["peers"]
@@ -429,11 +429,11 @@ class Table2All(Table2Full):
 
     def caption(self, config):
         s = self.settings(config)
-        ours = s.get("ours", {})
+        ours = s.get("ours", {}).get("options", {})
         how = (
             f" Ours (Nystroem {ours['landmarks']}) is the regularizer on the Nystroem approximation of the "
             f"kernel ({ours['landmarks']} landmark samples, "
-            "minimize_regularized(landmarks=...), opt-in; not the exact solve, see docs/PERFORMANCE.md)."
+            "minimize_regularized(method='nystroem'), opt-in; not the exact solve, see docs/PERFORMANCE.md)."
             if "landmarks" in ours
             else ""
         )

@@ -228,11 +228,11 @@ def run_sequence(
         rho0=rho0,
         rho_growth=rho_growth,
         rho_max=rho_max,
-        max_inner=max_inner,
+        options={} if max_inner is None else {"max_inner": max_inner},
     )
     for key, value in (("tol", tol), ("gtol", gtol), ("stage_tol", stage_tol)):
         if value is not None:
-            regularizer_options[key] = check_positive(value, key)
+            regularizer_options["options"][key] = check_positive(value, key)
 
     W2d = stack_to_rows(seq.W, dim=2)
     X_gt = stack_to_rows(seq.S, dim=3)

@@ -12,6 +12,7 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from .._cv import positive_grid, run_jobs, say, summarise_folds
+from .._options import merge_solver_kwargs
 from .._validation import check_count, check_positive
 from ..baselines import mean_impute
 from ..baselines._masked import check_masked_matrix, mean_fill
@@ -77,7 +78,7 @@ def _regularizer_path(
     with threadpool_limits(1):
         data_term = MaskedLeastSquares(W, train)
         rho_max = options.get("rho_max", 1e4)
-        stage = {**options, "rho0": rho_max, "rho_max": rho_max}
+        stage = {**options, "rho0": rho_max, "rho_max": rho_max}  # options carries isolation_guard=True
         rows, first = [], None
         for gamma in gammas:
             previous, lowest = first if warm_gamma else None, np.inf
@@ -92,7 +93,6 @@ def _regularizer_path(
                     gamma=gamma,
                     tau=tau,
                     center=center,
-                    isolation_guard=True,
                     **(stage if warm else options),
                 )
                 previous = res.x
@@ -199,7 +199,7 @@ def select_regularizer(
         ``solver_options``). Looser than the solver's defaults: a fold score only ranks candidates.
     fold_landmarks : int >= 1, optional
         Opt-in approximation for large n: the fold solves use the Nystroem kernel on this many landmark
-        samples (:func:`~nldr.regularizer.minimize_regularized` ``landmarks``), so the hold-out errors
+        samples (:func:`~nldr.regularizer.minimize_regularized` ``method="nystroem"``), so the hold-out errors
         are those of the approximate solve; the refit (``result_``) is always the exact solve unless
         ``solver_options`` asks otherwise. None (default): every solve exact. At n = 1000,
         ``fold_landmarks=200`` costs about a fifth of an exact evaluation (docs/PERFORMANCE.md).
@@ -208,7 +208,7 @@ def select_regularizer(
         solve runs on one BLAS thread.
     refit_options : mapping, optional
         Further options of the refit's :func:`~nldr.regularizer.minimize_regularized` alone (e.g.
-        ``{"warm_start": "nystroem", "landmarks": 100}``: a faster path to the exact minimum at
+        ``{"method": "nystroem-warm", "options": {"landmarks": 100}}``: a faster path to the exact minimum at
         scale, docs/PERFORMANCE.md#scale); the fold solves do not see them.
     score : {"squared", "absolute"}, default "squared"
         Fold score per hidden entry: squared error, or absolute error (robust to gross outliers among
@@ -218,8 +218,9 @@ def select_regularizer(
         seconds; from the worker processes when ``n_jobs > 1``, which a notebook does not show), a line
         per finished fold job, the choice and the refit.
     **solver_options
-        Passed to :func:`~nldr.regularizer.minimize_regularized` (``rho0, rho_growth, rho_max,
-        max_inner, tol, gtol, eigensolver``); ``isolation_guard`` is always on.
+        Passed to :func:`~nldr.regularizer.minimize_regularized` (``rho0, rho_growth, rho_max``,
+        ``method`` and ``options``, e.g. ``options={"max_inner": 500}``); the option
+        ``isolation_guard`` is always on.
 
     Returns
     -------
@@ -235,11 +236,11 @@ def select_regularizer(
     """
     W, mask = check_masked_matrix(W, mask)
     for key in ("gamma", "tau", "center", "isolation_guard"):
-        if key in solver_options:
+        if key in solver_options or key in (solver_options.get("options") or {}):
             raise ValueError(f"solver option {key!r} is set by select_regularizer; remove it")
     refit = dict(refit_options or {})
     for key in ("gamma", "tau", "center", "isolation_guard"):
-        if key in refit:
+        if key in refit or key in (refit.get("options") or {}):
             raise ValueError(f"refit option {key!r} is set by select_regularizer; remove it")
     n_jobs = check_count(n_jobs, "n_jobs")
     score = check_score(score)
@@ -252,13 +253,12 @@ def select_regularizer(
     if gammas is None:
         gammas = np.asarray(GAMMA_MULTIPLES) * median_gamma(W, mask)
     gammas = positive_grid(gammas, "gammas")
-    fold_options = {
-        **solver_options,
-        "tol": check_positive(fold_tol, "fold_tol"),
-        "gtol": check_positive(fold_gtol, "fold_gtol"),
-    }
+    fold = {"tol": check_positive(fold_tol, "fold_tol"), "gtol": check_positive(fold_gtol, "fold_gtol")}
+    fold_options = merge_solver_kwargs(solver_options, {"options": {**fold, "isolation_guard": True}})
     if fold_landmarks is not None:
-        fold_options["landmarks"] = check_count(fold_landmarks, "fold_landmarks")
+        landmarks = check_count(fold_landmarks, "fold_landmarks")
+        nystroem = {"method": "nystroem", "options": {"landmarks": landmarks}}
+        fold_options = merge_solver_kwargs(fold_options, nystroem)
     folds = holdout_folds(mask, n_folds, random_state, holdout=holdout)
     jobs = []
     for i, hidden in enumerate(folds):
@@ -291,8 +291,7 @@ def select_regularizer(
             gamma=gamma,
             tau=tau,
             center=bool(center),
-            isolation_guard=True,
-            **{**solver_options, **refit},
+            **merge_solver_kwargs(solver_options, refit, {"options": {"isolation_guard": True}}),
         )
     say(verbose, "select_regularizer", f"refit: {result.message}")
     return RegularizerSelection(tau, gamma, cv_results, result, folds)

@@ -25,6 +25,7 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from .._cv import positive_grid, run_jobs, summarise_folds
+from .._options import merge_solver_kwargs
 from .._validation import check_count, check_positive
 from ..baselines import mean_impute
 from ..baselines._masked import check_masked_matrix, mean_fill
@@ -85,13 +86,10 @@ def robust_scale(residuals) -> float:
 
 def _huber_fit(W, train, S0, gamma, tau, delta_factor, center, options):
     """Least-squares fit, the delta rule on its training residuals, the Huber fit. Returns (result, delta)."""
-    ls = minimize_regularized(
-        MaskedLeastSquares(W, train), S0, gamma=gamma, tau=tau, center=center, isolation_guard=True, **options
-    )
+    options = merge_solver_kwargs(options, {"gamma": gamma, "tau": tau, "options": {"isolation_guard": True}})
+    ls = minimize_regularized(MaskedLeastSquares(W, train), S0, center=center, **options)
     delta = delta_factor * robust_scale((W - ls.x)[train])
-    fit = minimize_regularized(
-        MaskedHuber(W, train, delta), S0, gamma=gamma, tau=tau, center=center, isolation_guard=True, **options
-    )
+    fit = minimize_regularized(MaskedHuber(W, train, delta), S0, center=center, **options)
     return fit, delta
 
 
@@ -155,7 +153,7 @@ def select_huber_regularizer(
     n_jobs : int >= 1
         Processes over the folds.
     **solver_options
-        Passed to :func:`~nldr.regularizer.minimize_regularized` (schedule, ``max_inner``, ...).
+        Passed to :func:`~nldr.regularizer.minimize_regularized` (schedule, ``method``, ``options``).
 
     Returns
     -------
@@ -165,7 +163,7 @@ def select_huber_regularizer(
     """
     W, mask = check_masked_matrix(W, mask)
     for key in ("gamma", "tau", "center", "isolation_guard"):
-        if key in solver_options:
+        if key in solver_options or key in (solver_options.get("options") or {}):
             raise ValueError(f"solver option {key!r} is set by select_huber_regularizer; remove it")
     delta_factor = check_positive(delta_factor, "delta_factor")
     score = check_score(score)
@@ -175,11 +173,8 @@ def select_huber_regularizer(
         gammas = np.asarray(GAMMA_MULTIPLES) * median_gamma(W, mask)
     gammas = positive_grid(gammas, "gammas")
     candidates = [(float(g), float(t)) for g in gammas for t in taus]
-    fold_options = {
-        **solver_options,
-        "tol": check_positive(fold_tol, "fold_tol"),
-        "gtol": check_positive(fold_gtol, "fold_gtol"),
-    }
+    fold = {"tol": check_positive(fold_tol, "fold_tol"), "gtol": check_positive(fold_gtol, "fold_gtol")}
+    fold_options = merge_solver_kwargs(solver_options, {"options": fold})
     folds = holdout_folds(mask, n_folds, random_state, holdout=holdout)
     jobs = [
         (
