@@ -88,7 +88,7 @@ def test_huber_kernel_starts_from_the_robust_tnh(monkeypatch):
     assert isinstance(ls_term, OrthographicReprojection) and ls_kw["tau"] == SETTINGS["tau"]
     assert hub_term.delta == rows.loc[rows["method"] == "Kernel (Huber)", "delta"].item()
     assert hub_kw["tau"] == rows.loc[rows["method"] == "Kernel (Huber)", "tau"].item()
-    assert hub_kw["max_inner"] == 200  # the Huber block's own regularizer options apply
+    assert hub_kw["options"]["max_inner"] == 200  # the Huber block's own regularizer options apply
     tau_r = robust_tnh_tau((12, 24), 0.6)
     delta, tau = huber_kernel_parameters(
         hub_term.term, robust_results[0].x, tau_r, hub_kw["gamma"], 1.345, 1.0
