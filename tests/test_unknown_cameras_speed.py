@@ -119,7 +119,9 @@ def test_fista_with_gram_thresholding_follows_the_svd_iterates():
     start = np.zeros((F, 3, P))
     fast = fista_tnh(W3, m3, R, start, 0.0, 0.3, 400, 1e-10, soft_threshold_singular_values_gram)
     slow = fista_tnh(W3, m3, R, start, 0.0, 0.3, 400, 1e-10, soft_threshold_singular_values)
-    assert fast.success and fast.nit == slow.nit
+    # the two thresholdings agree to rounding, so the stop test (relative decrease < tol) can fall on
+    # either side of tol on the one iteration where the decrease crosses it: one iteration either way
+    assert fast.success and abs(fast.nit - slow.nit) <= 1
     assert np.abs(fast.x - slow.x).max() <= 1e-9 * np.abs(slow.x).max()
     assert fast.nuclear_norm == pytest.approx(slow.nuclear_norm, rel=1e-12)
     assert fast.fun == 0.3 * fast.nuclear_norm + fast.reprojection_error
@@ -207,8 +209,9 @@ def test_shape_tol_ratio_zero_is_the_fixed_tolerance_alternation():
     R0 = initialize_cameras(W, mask)
     ref = tnh_with_camera_refinement_reference(W, mask, R0, 3.0)
     fixed = uc.tnh_with_camera_refinement(W, mask, R0, 3.0, shape_tol_ratio=0.0, shape_momentum=False)
-    assert fixed.nit == ref.nit
-    np.testing.assert_allclose(fixed.energy_history, ref.energy_history, rtol=1e-9)
+    assert abs(fixed.nit - ref.nit) <= 1  # the thresholdings agree to rounding: the stop test may shift one
+    n = min(fixed.energy_history.size, ref.energy_history.size)
+    np.testing.assert_allclose(fixed.energy_history[:n], ref.energy_history[:n], rtol=1e-9)
 
 
 def test_tnh_with_camera_refinement_validates_the_shape_options():
