@@ -146,6 +146,8 @@ def compare_scorecards(first: Path, second: Path) -> tuple[pd.DataFrame, pd.Data
 
 def markdown(frame: pd.DataFrame, digits: int = 3) -> str:
     """A Markdown table of ``frame`` (floats to ``digits`` significant digits)."""
+    if frame.empty:
+        return "(nothing to compare)"
 
     def cell(x) -> str:
         return f"{x:.{digits}g}" if isinstance(x, float) else str(x)
