@@ -113,7 +113,7 @@ def test_a_tau_path_is_the_hand_chain_of_last_stage_solves_and_widths_chain_from
     for h in holdout_folds(mask, 2, random_state=0, holdout=0.1):
         train = mask & ~h
         W_train = np.where(train, W, np.nan)
-        opts = {"tol": 1e-7, "gtol": 1e-4}
+        opts = {"tol": 1e-7, "gtol": 1e-4, "scale": 1.0}  # the full schedule's units, as WarmRegularizer
         first = solve(W_train, train, mean_impute(W_train, train), g1, 0.1, **opts)  # the one cold solve
         chain = {
             (g1, 0.1): first,
