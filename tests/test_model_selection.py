@@ -202,7 +202,8 @@ def test_a_warm_regularizer_imputer_refit_on_another_shape_or_standardised_start
     expected = minimize_regularized(term, Z, gamma=gamma, tau=1.0, rho0=1e4, options={"scale": 1.0})
     np.testing.assert_allclose(imputer.result_.x, expected.x, rtol=0, atol=1e-12)
     imputer.fit(W[:20])  # another shape: the full schedule again
-    np.testing.assert_array_equal(imputer.completed_, KernelRegularizerImputer(tau=1.0).fit(W[:20]).completed_)
+    fresh = KernelRegularizerImputer(tau=1.0).fit(W[:20])
+    np.testing.assert_array_equal(imputer.completed_, fresh.completed_)
 
 
 @pytest.mark.parametrize(
