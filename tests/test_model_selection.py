@@ -113,7 +113,7 @@ def test_a_tau_path_is_the_hand_chain_of_last_stage_solves_and_widths_chain_from
     for h in holdout_folds(mask, 2, random_state=0, holdout=0.1):
         train = mask & ~h
         W_train = np.where(train, W, np.nan)
-        opts = {"tol": 1e-7, "gtol": 1e-4, "scale": 1.0}  # the full schedule's units, as WarmRegularizer
+        opts = {"tol": 1e-7, "gtol": 1e-4, "scale": 1.0}  # the full schedule's units (sqrt(rho0 = 1))
         first = solve(W_train, train, mean_impute(W_train, train), g1, 0.1, **opts)  # the one cold solve
         chain = {
             (g1, 0.1): first,
@@ -140,7 +140,7 @@ def test_the_regularizer_imputer_s_fold_errors_are_the_hand_computed_ones_and_th
     gamma, taus = median_gamma(W), [0.1, 1.0]
     ours = KernelRegularizerImputer(standardize=False, gamma=gamma, method="exact")
     loose = {"options": {"tol": 1e-7, "gtol": 1e-4}}
-    search = HoldoutSearch(ours, {"tau": taus}, n_folds=2, fold_params={"options": loose}).fit(W)
+    search = HoldoutSearch(ours, {"tau": taus}, n_folds=2, fold_params=loose).fit(W)
     folds = holdout_folds(mask, 2, random_state=0)
     for k, tau in enumerate(taus):
         errors = []
@@ -153,6 +153,97 @@ def test_the_regularizer_imputer_s_fold_errors_are_the_hand_computed_ones_and_th
         assert search.cv_results_["std_test_error"][k] == pytest.approx(np.std(errors, ddof=1), rel=1e-9)
     refit = solve(W, mask, mean_impute(W, mask), gamma, search.best_params_["tau"])
     np.testing.assert_array_equal(search.transform(W), refit)
+
+
+def test_the_regularizer_imputer_s_tau_path_is_the_hand_chain_of_warm_last_stage_solves():
+    from nldr.impute import KernelRegularizerImputer
+
+    _, W, mask = denoising_problem(n=25, d=5)
+    W = np.where(mask, W, np.nan)
+    g1, g2 = 0.5 * median_gamma(W, mask), median_gamma(W, mask)
+    ours = KernelRegularizerImputer(standardize=False, method="exact")
+    search = HoldoutSearch(
+        ours, {"gamma": [g1, g2], "tau": [0.1, 1.0]}, n_folds=2, holdout=0.1, path="tau",
+        fold_params={"options": {"tol": 1e-7, "gtol": 1e-4}},
+    ).fit(W)
+    errors = {key: [] for key in [(g1, 0.1), (g1, 1.0), (g2, 0.1), (g2, 1.0)]}
+    cold = {"tol": 1e-7, "gtol": 1e-4}
+    warm = {**cold, "rho0": 1e4, "scale": 1.0}  # the last stage, in the full schedule's units
+    for h in holdout_folds(mask, 2, random_state=0, holdout=0.1):
+        train = mask & ~h
+        first = solve(W, train, mean_impute(np.where(train, W, np.nan), train), g1, 0.1, **cold)
+        chain = {(g1, 0.1): first, (g1, 1.0): solve(W, train, first, g1, 1.0, **warm)}
+        chain[(g2, 0.1)] = solve(W, train, first, g2, 0.1, **warm)  # the next width from the first
+        chain[(g2, 1.0)] = solve(W, train, chain[(g2, 0.1)], g2, 1.0, **warm)
+        for key, x in chain.items():
+            errors[key].append(np.mean((x - W)[h] ** 2))
+    for k, params in enumerate(search.cv_results_["params"]):
+        expected = np.mean(errors[(params["gamma"], params["tau"])])
+        assert search.cv_results_["mean_test_error"][k] == pytest.approx(expected, rel=1e-12)
+    best = search.best_params_  # the refit is cold: the full schedule from mean imputation
+    refit = solve(W, mask, mean_impute(W, mask), best["gamma"], best["tau"])
+    np.testing.assert_array_equal(search.transform(W), refit)
+    assert search.best_estimator_.warm_start is False
+
+
+def test_a_warm_regularizer_imputer_refit_on_another_shape_or_standardised_starts_from_its_estimate():
+    from nldr.impute import KernelRegularizerImputer
+
+    _, W, mask = denoising_problem(n=25, d=5)
+    W = np.where(mask, W, np.nan)
+    imputer = KernelRegularizerImputer(tau=0.1, warm_start=True).fit(W)  # no previous fit: cold
+    cold = KernelRegularizerImputer(tau=0.1).fit(W)
+    np.testing.assert_array_equal(imputer.completed_, cold.completed_)
+    previous = imputer.completed_.copy()
+    imputer.set_params(tau=1.0).fit(W)
+    Z = (previous - imputer.mean_) / imputer.scale_
+    gamma = imputer.gamma_
+    term = MaskedLeastSquares(np.where(mask, (W - imputer.mean_) / imputer.scale_, np.nan), mask)
+    expected = minimize_regularized(term, Z, gamma=gamma, tau=1.0, rho0=1e4, options={"scale": 1.0})
+    np.testing.assert_allclose(imputer.result_.x, expected.x, rtol=0, atol=1e-12)
+    imputer.fit(W[:20])  # another shape: the full schedule again
+    fresh = KernelRegularizerImputer(tau=1.0).fit(W[:20])
+    np.testing.assert_array_equal(imputer.completed_, fresh.completed_)
+
+
+@pytest.mark.parametrize(
+    "params",
+    [
+        {"options": {"tol": 1e-7, "gtoll": 1e-4}},
+        {"method": "exact", "options": {"landmarks": 50}},
+        {"method": "nystroem", "options": {"tol": 1e-7}},  # landmarks required
+        {"method": "auto", "options": {"max_iner": 10}},
+        {"schedule": {"rho": 1.0}},
+        {"warm_start": "yes"},
+    ],
+)
+def test_a_bad_regularizer_imputer_option_is_refused_before_the_first_fold(params, monkeypatch):
+    from nldr.impute import KernelRegularizerImputer
+    from nldr.impute import regularizer as module
+
+    def never(*args, **kwargs):
+        raise AssertionError("a solve ran before the options were checked")
+
+    monkeypatch.setattr(module, "minimize_regularized", never)
+    _, W, mask = denoising_problem(n=25, d=5)
+    W = np.where(mask, W, np.nan)
+    grid = {"tau": [0.1, 1.0]}
+    with pytest.raises(ValueError, match="option|schedule|warm_start|landmarks"):
+        HoldoutSearch(KernelRegularizerImputer(**params), grid, n_folds=2, path="tau").fit(W)
+    typo = {"options": {"tol": 1e-7, "gtoll": 1e-4}}
+    with pytest.raises(ValueError, match="gtoll"):
+        HoldoutSearch(KernelRegularizerImputer(), grid, n_folds=2, fold_params=typo).fit(W)
+
+
+def test_method_auto_takes_the_nystroem_warm_options_and_drops_them_where_it_solves_exactly():
+    from nldr.impute import KernelRegularizerImputer
+
+    _, W, mask = denoising_problem(n=25, d=5)
+    W = np.where(mask, W, np.nan)
+    auto = KernelRegularizerImputer(options={"landmarks": 10, "exact_stages": 2, "tol": 1e-8}).fit(W)
+    exact = KernelRegularizerImputer(method="exact", options={"tol": 1e-8}).fit(W)
+    assert auto.method_ == "exact"
+    np.testing.assert_array_equal(auto.completed_, exact.completed_)
 
 
 def test_early_stop_leaves_the_solved_scores_unchanged_and_skips_only_the_end_of_a_path():

@@ -171,7 +171,7 @@ class Robust(Experiment):
             candidates = {"gamma": [float(g) for g in gammas], "tau": [float(t) for t in taus]}
             # the regularizer in the data's units with the block's schedule; the fold solves stop
             # earlier (they only rank), each tau path from the smallest tau up
-            ours = KernelRegularizerImputer(standardize=False, method="exact", options=dict(schedule))
+            ours = KernelRegularizerImputer(standardize=False, method="exact", schedule=dict(schedule))
             search = {
                 "n_folds": settings["n_folds"],
                 "random_state": seed,
@@ -180,7 +180,7 @@ class Robust(Experiment):
             }
             folds = {**schedule, "options": dict(FOLD_TOLERANCES)}
             start = time.perf_counter()
-            fold_ls = {"options": folds}
+            fold_ls = {"options": dict(FOLD_TOLERANCES)}
             ls = HoldoutSearch(ours, candidates, path="tau", stop_factor=1.5, fold_params=fold_ls, **search)
             X_hat = ls.fit_transform(W)
             record("Ours (LS)", X_hat, time.perf_counter() - start, _words(ls.best_params_))

@@ -61,21 +61,30 @@ def exact_path(settings, p: float) -> dict:
 def regularizer_imputer(settings, p: float) -> KernelRegularizerImputer:
     """The regularizer of the exact solves, with the paper's settings written out: data in its units
     (``standardize=False``), the block's ``center`` and penalty ``schedule``, and the path to the exact
-    answer of :func:`exact_path` at missing share p."""
-    solver = {**settings["schedule"], **exact_path(settings, p)}
+    answer of :func:`exact_path` at missing share p (landmarks drawn from seed 0). Along a tau path
+    :class:`~nldr.model_selection.HoldoutSearch` sets its ``warm_start``: every candidate of a fold
+    after the first starts from its neighbour's solution with the last penalty stage only."""
+    path = exact_path(settings, p)
+    options = dict(path.get("options") or {})
+    if path:
+        options.setdefault("landmark_seed", 0)
     return KernelRegularizerImputer(
-        standardize=False, center=bool(settings["center"]), method="exact", options=solver
+        standardize=False,
+        center=bool(settings["center"]),
+        method=path.get("method", "exact"),
+        options=options or None,
+        schedule=dict(settings["schedule"]),
     )
 
 
 def fold_params(settings) -> dict:
     """Parameters of the CV's fold solves: :data:`FOLD_TOLERANCES`, the exact kernel (or the
     Nystroem kernel on ``fold_landmarks`` landmark rows), never the refit's path."""
-    solver = {**settings["schedule"], "options": dict(FOLD_TOLERANCES)}
+    params = {"method": "exact", "options": dict(FOLD_TOLERANCES)}
     if settings.get("fold_landmarks") is not None:
-        solver["method"] = "nystroem"
-        solver["options"]["landmarks"] = settings["fold_landmarks"]
-    return {"options": solver}
+        params["method"] = "nystroem"
+        params["options"].update(landmarks=settings["fold_landmarks"], landmark_seed=0)
+    return params
 
 
 def _total_sse(X, X_hat, hidden) -> float:

@@ -24,7 +24,6 @@ from sklearn.base import clone
 from sklearn.impute import SimpleImputer
 
 from .. import paper as paper_numbers
-from .._options import merge_solver_kwargs
 from .._validation import as_float_matrix
 from ..datasets import load_oil, load_oil_rows
 from ..model_selection import HoldoutSearch, baseline_grid
@@ -85,9 +84,13 @@ def paper_methods(settings: Mapping) -> dict:
     kwargs = {name: dict(values) for name, values in settings["methods"].items()}
     for name in ("PKPCA", "RKPCA", "Ours"):
         kwargs.setdefault(name, {}).setdefault("gamma", settings["gamma"])
-    extra = settings.get("ours", {})  # e.g. table2_all's Nystroem kernel: merged into the solver's options
-    solver = merge_solver_kwargs(kwargs["Ours"].get("options"), extra.get("options"))
-    ours = {**kwargs["Ours"], "options": solver}
+    extra = dict(settings.get("ours", {}))  # e.g. table2_all's Nystroem kernel, laid over Ours's
+    ours = {**kwargs["Ours"], **{k: v for k, v in extra.items() if k not in ("options", "schedule")}}
+    for key in ("options", "schedule"):  # merged key by key
+        merged = {**(kwargs["Ours"].get(key) or {}), **(extra.get(key) or {})}
+        ours[key] = merged or None
+    if ours.get("method", "auto") != "exact":
+        ours["options"] = {"landmark_seed": 0, **(ours["options"] or {})}  # landmarks from a fixed seed
     return {
         "mean": SimpleImputer(strategy="mean"),
         "1-NN": NearestNeighbourImputer(**kwargs.get("1-NN", {})),
@@ -335,7 +338,7 @@ class Table2(Experiment):
         skip = set(settings.get("skip", []))
         estimators = {m: e for m, e in paper_methods(settings).items() if m not in skip}
         rows = run_mask(X, p=p, seed=seed, estimators=estimators, progress=progress)
-        landmarks = settings.get("ours", {}).get("options", {}).get("options", {}).get("landmarks")
+        landmarks = (settings.get("ours", {}).get("options") or {}).get("landmarks")
         if landmarks is not None:  # not the exact solve: the label says so wherever the row appears
             rows["method"] = rows["method"].replace("Ours", f"Ours (Nystroem {landmarks})")
         peers = settings["peers"]
@@ -398,7 +401,7 @@ class Table2All(Table2Full):
 
     def caption(self, config):
         s = self.settings(config)
-        ours = s.get("ours", {}).get("options", {}).get("options", {})
+        ours = s.get("ours", {}).get("options") or {}
         how = (
             f" Ours (Nystroem {ours['landmarks']}) is the regularizer on the Nystroem approximation of the "
             f"kernel ({ours['landmarks']} landmark samples, "

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from sklearn.utils import check_random_state
 
+from .._options import ExactOptions, solver_options
 from .._threads import blas_threads_for
 from .._validation import check_count, check_positive
 from ..baselines._masked import mean_fill, observed_column_means
@@ -23,6 +26,10 @@ SCHEDULE_KEYS = ("rho0", "rho_growth", "rho_max")
 #: ``method="auto"`` solves exactly up to this many rows and warm-starts from the Nystroem kernel above
 #: (docs/PERFORMANCE.md, "The imputer's solver path").
 AUTO_EXACT_MAX_ROWS = 150
+#: options "exact" takes (method="auto" drops the others below AUTO_EXACT_MAX_ROWS rows)
+_EXACT_OPTIONS = frozenset(f.name for f in dataclasses.fields(ExactOptions))
+#: minimize_regularized's default penalty schedule
+_DEFAULT_SCHEDULE = {"rho0": 1.0, "rho_max": 1e4}
 #: the default width is this multiple of 1 / (median squared distance between rows), standardised units
 #: (docs/REPRODUCTION.md, "The imputer's defaults")
 MEDIAN_RULE_MULTIPLE = 0.25
@@ -99,8 +106,11 @@ class KernelRegularizerImputer(MaskedImputerBase):
     options : dict or None, default None
         The method's options, as :func:`~nldr.regularizer.minimize_regularized` takes them
         (tolerances, ``max_inner``, ``eigensolver``, ``landmarks``, ...); an option the method does
-        not take is a ValueError naming the method. The Nystroem methods' ``landmark_seed`` defaults
-        to a draw from ``random_state``.
+        not take is a ValueError naming the method (raised by every fit, before any solve). "auto"
+        takes the options of "nystroem-warm"; its Nystroem-only ones (``landmarks``,
+        ``landmark_seed``, ``exact_stages``, ``exact_tol``, ``last_landmarks``) apply only above
+        :data:`AUTO_EXACT_MAX_ROWS` rows. The Nystroem methods' ``landmark_seed`` defaults to a draw
+        from ``random_state``.
     schedule : dict or None, default None
         The penalty schedule: ``rho0``, ``rho_growth``, ``rho_max`` of
         :func:`~nldr.regularizer.minimize_regularized` (None: its defaults 1, 10, 1e4, the paper's).
@@ -116,6 +126,13 @@ class KernelRegularizerImputer(MaskedImputerBase):
         ``transform`` with ``starts="each"``: how the local minima are averaged.
     random_state : int, RandomState or None, default None
         Seeds the landmark draw of the Nystroem warm start (the exact path draws nothing).
+    warm_start : bool, default False
+        A fit after a previous fit on a matrix of the same shape starts from the previous solve's S
+        (``result_.x``) and solves the last penalty stage only (rho0 = rho_max), its stopping tests in
+        the units of the full schedule (``options["scale"]`` = sqrt(rho0 of ``schedule``) unless
+        ``options`` sets it). This is how a path of taus or widths is solved cheaply, e.g. by
+        :class:`nldr.model_selection.HoldoutSearch` with ``path="tau"``. The first fit, or one on
+        another shape, solves the full schedule from mean imputation.
 
     Attributes
     ----------
@@ -167,6 +184,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         starts="mean",
         weights="uniform",
         random_state=None,
+        warm_start=False,
     ):
         self.missing_values = missing_values
         self.gamma = gamma
@@ -181,6 +199,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self.starts = starts
         self.weights = weights
         self.random_state = random_state
+        self.warm_start = warm_start
 
     _min_samples = 2
 
@@ -194,6 +213,19 @@ class KernelRegularizerImputer(MaskedImputerBase):
         check_count(self.n_neighbors, "n_neighbors")
         tau = check_positive(self.tau, "tau")
         gamma = None if self.gamma is None else check_positive(self.gamma, "gamma")
+        if self.options is not None and not isinstance(self.options, dict):
+            raise ValueError(f"options must be a dict of the method's options or None; got {self.options!r}")
+        schedule = {} if self.schedule is None else self.schedule
+        if not isinstance(schedule, dict) or set(schedule) - set(SCHEDULE_KEYS):
+            raise ValueError(
+                f"schedule must be a dict with keys among {SCHEDULE_KEYS} or None; got {schedule!r}"
+            )
+        options = dict(self.options or {})
+        if self.method != "exact":
+            options.setdefault("landmark_seed", 0)  # drawn from random_state at fit
+        solver_options("nystroem-warm" if self.method == "auto" else self.method, options)
+        if not isinstance(self.warm_start, bool | np.bool_):
+            raise ValueError(f"warm_start must be True or False; got {self.warm_start!r}")
         return gamma, tau
 
     def _standardisation(self, W, mask):
@@ -205,23 +237,25 @@ class KernelRegularizerImputer(MaskedImputerBase):
         sd = np.sqrt(var.sum(axis=0) / mask.sum(axis=0))
         return mean, np.where(sd > 0, sd, 1.0)
 
-    def _solver_arguments(self, n: int) -> tuple[str, dict]:
-        """The solver path and minimize_regularized's keyword arguments (options checked there)."""
+    def _solver_arguments(self, n: int, warm: bool) -> tuple[str, dict]:
+        """The solver path and minimize_regularized's keyword arguments (checked by _check_params).
+        ``warm``: the last penalty stage only, in the stopping units of the full schedule."""
         method = self.method
         if method == "auto":
             method = "exact" if n <= AUTO_EXACT_MAX_ROWS else "nystroem-warm"
-        if self.options is not None and not isinstance(self.options, dict):
-            raise ValueError(f"options must be a dict of the method's options or None; got {self.options!r}")
-        schedule = {} if self.schedule is None else self.schedule
-        if not isinstance(schedule, dict) or set(schedule) - set(SCHEDULE_KEYS):
-            raise ValueError(
-                f"schedule must be a dict with keys among {SCHEDULE_KEYS} or None; got {schedule!r}"
-            )
+        schedule = dict(self.schedule or {})
         options = dict(self.options or {})
-        if method != "exact" and "landmark_seed" not in options:
+        if method == "exact":
+            options = {k: v for k, v in options.items() if k in _EXACT_OPTIONS}
+        elif "landmark_seed" not in options:
             options["landmark_seed"] = int(
                 check_random_state(self.random_state).randint(np.iinfo(np.int32).max)
             )
+        if warm:
+            rho0 = float(schedule.get("rho0", _DEFAULT_SCHEDULE["rho0"]))
+            rho_max = float(schedule.get("rho_max", _DEFAULT_SCHEDULE["rho_max"]))
+            options.setdefault("scale", float(np.sqrt(rho0)))
+            schedule.update(rho0=rho_max, rho_max=rho_max)
         return method, {"method": method, "options": options, "verbose": bool(self.verbose), **schedule}
 
     def _solve(self, W, mask):
@@ -229,9 +263,13 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self.mean_, self.scale_ = self._standardisation(W, mask)
         Z = W if not self.standardize else np.where(mask, (W - self.mean_) / self.scale_, 0.0)
         S0 = mean_fill(Z, mask)
-        self.gamma_ = _median_rule_gamma(S0) if gamma is None else gamma
+        previous = getattr(self, "completed_", None) if self.warm_start else None
+        warm = previous is not None and previous.shape == W.shape
+        if warm:  # the previous estimate, in this fit's (standardised) units
+            S0 = previous if not self.standardize else (previous - self.mean_) / self.scale_
+        self.gamma_ = _median_rule_gamma(mean_fill(Z, mask)) if gamma is None else gamma
         self.tau_ = tau
-        self.method_, kwargs = self._solver_arguments(W.shape[0])
+        self.method_, kwargs = self._solver_arguments(W.shape[0], warm)
         result = minimize_regularized(
             MaskedLeastSquares(Z, mask), S0, gamma=self.gamma_, tau=tau, center=bool(self.center), **kwargs
         )
