@@ -176,7 +176,7 @@ def solve_admm(
         When ``max_iter`` is reached before the tolerance is met (status MAX_ITER).
     """
     start = time.perf_counter()
-    tol, max_iter, beta0, alpha = _check_options(tol, max_iter, beta, relaxation)
+    tol, max_iter, beta0, alpha = check_admm_options(tol, max_iter, beta, relaxation)
     feasible = _ExactFitSet(term)
     Z, U = _initial_iterates(term, feasible.scale, feasible.offset, X0, Y0, beta0)
     run = _iterate(feasible, Z, U, beta0, alpha, tol, max_iter, adaptive, verbose)
@@ -230,8 +230,8 @@ def solve_admm(
     )
 
 
-def _check_options(tol, max_iter, beta, relaxation) -> tuple[float, int, float, float]:
-    """(tol, max_iter, initial beta, relaxation alpha), validated."""
+def check_admm_options(tol, max_iter, beta, relaxation) -> tuple[float, int, float, float]:
+    """(tol, max_iter, initial beta, relaxation alpha) of the ADMM TNH solvers, validated."""
     tol = check_positive(tol, "tol")
     if tol >= 1.0:
         raise ValueError(f"tol must be in (0, 1); got {tol!r}")

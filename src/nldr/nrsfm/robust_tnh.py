@@ -60,8 +60,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validation import as_float_matrix, check_count, check_positive
+from .._validation import as_float_matrix, check_positive
 from ..result import CONVERGED, MAX_ITER
+from .admm import check_admm_options
 from .reprojection import OrthographicReprojection
 from .svt import soft_threshold_singular_values_gram
 from .tnh_result import TNHResult, fit_summary
@@ -171,14 +172,7 @@ def robust_trace_norm_heuristic(
     start = time.perf_counter()
     term = OrthographicReprojection(W2d, R, mask)  # validates tracks, cameras and mask
     tau = check_positive(tau, "tau")
-    tol = check_positive(tol, "tol")
-    if tol >= 1.0:
-        raise ValueError(f"tol must be in (0, 1); got {tol!r}")
-    max_iter = check_count(max_iter, "max_iter")
-    beta0 = 1.0 if beta is None else check_positive(beta, "beta")
-    alpha = check_positive(relaxation, "relaxation")
-    if alpha >= 2.0:
-        raise ValueError(f"relaxation must be in (0, 2); got {relaxation!r}")
+    tol, max_iter, beta0, alpha = check_admm_options(tol, max_iter, beta, relaxation)
     problem = _L1Problem(term, tau)
     if X0 is None:
         Z = problem.least_norm_fit()
