@@ -8,6 +8,7 @@ import pytest
 import scipy.sparse as sp
 from threadpoolctl import threadpool_limits
 
+from nldr._reduced import optimal_kernel_factor
 from nldr._spectral import leading_eigenpairs
 from nldr.data_terms import MaskedLeastSquares
 from nldr.kernels import center_kernel, rbf_kernel
@@ -21,7 +22,6 @@ from nldr.reference.regularizer import (
 from nldr.regularizer import (
     RegularizerResult,
     minimize_regularized,
-    optimal_kernel_factor,
     penalty_schedule,
     reduced_energy,
 )

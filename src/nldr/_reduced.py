@@ -30,7 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from ._spectral import PARTIAL_MIN_N, spectrum
+from ._spectral import PARTIAL_MIN_N, check_eigensolver, spectrum
+from ._validation import as_float_matrix, check_positive
 from .kernels import center_kernel, rbf_kernel_vjp, squared_distances
 
 __all__ = [
@@ -39,6 +40,7 @@ __all__ = [
     "rbf",
     "reduced_value_grad",
     "kernel_factor",
+    "optimal_kernel_factor",
     "lbfgs_stage",
     "lbfgs_minimize",
     "PLATEAU_WINDOW",
@@ -114,6 +116,38 @@ def kernel_factor(l: np.ndarray, U: np.ndarray) -> np.ndarray:
     C = np.zeros((U.shape[0], U.shape[0]))
     C[: l.size] = l[:, None] * U.T
     return C
+
+
+def optimal_kernel_factor(
+    S, *, gamma: float, tau: float, rho: float, center: bool = False, eigensolver: str = "auto"
+) -> np.ndarray:
+    """The C-step: closed-form minimiser C of ``tau ||C||_* + rho/2 ||K(S) - C^T C||_F^2``.
+
+    The literal C-step of :mod:`nldr.reference` and the tests' check of the solvers' C (users get
+    C as ``RegularizerResult.C``, or the closed form as :class:`nldr.robust_kpca.RobustKernelPCA`).
+
+    Parameters
+    ----------
+    S : array, shape (n_samples, n_features)
+    gamma, tau, rho : float > 0
+    center : bool, default=False
+    eigensolver : {"auto", "partial", "krylov", "full"}, default="auto"
+        See :func:`nldr.robust_kpca.closed_form_rank_penalty`.
+
+    Returns
+    -------
+    C : array, shape (n_samples, n_samples)
+        ``diag(l) U^T``, rows in decreasing eigenvalue order; rows beyond the rank are zero.
+    """
+    S = as_float_matrix(S, "S")
+    gamma, tau, rho = check_positive(gamma, "gamma"), check_positive(tau, "tau"), check_positive(rho, "rho")
+    if not isinstance(center, bool | np.bool_):
+        raise ValueError(f"center must be True or False (double-centre the kernel or not); got {center!r}")
+    K = rbf(S, gamma)
+    if center:
+        K = center_kernel(K)
+    _, U, l = spectrum(K, tau, rho, check_eigensolver(eigensolver))
+    return kernel_factor(l, U)
 
 
 def lbfgs_stage(

@@ -74,7 +74,7 @@ from ._reduced import (
     reduced_value_grad,
 )
 from ._schedule import isolation_safe_rho0, penalty_schedule
-from ._spectral import check_eigensolver, spectrum
+from ._spectral import check_eigensolver
 from ._threads import blas_threads_for
 from ._validation import as_float_matrix, check_positive
 from .data_terms import DataTerm, check_start
@@ -85,7 +85,6 @@ __all__ = [
     "minimize_regularized",
     "penalty_schedule",
     "reduced_energy",
-    "optimal_kernel_factor",
     "isolation_safe_rho0",
     "penalty_method",
     "KRYLOV_AUTO_FRACTION",
@@ -183,33 +182,6 @@ def reduced_energy(
     eigensolver = check_eigensolver(eigensolver)
     value, grad, _ = reduced_value_grad(S, data_term, gamma, tau, rho, _check_center(center), eigensolver)
     return float(value), grad
-
-
-def optimal_kernel_factor(
-    S, *, gamma: float, tau: float, rho: float, center: bool = False, eigensolver: str = "auto"
-) -> np.ndarray:
-    """The C-step: closed-form minimiser C of ``tau ||C||_* + rho/2 ||K(S) - C^T C||_F^2``.
-
-    Parameters
-    ----------
-    S : array, shape (n_samples, n_features)
-    gamma, tau, rho : float > 0
-    center : bool, default=False
-    eigensolver : {"auto", "partial", "krylov", "full"}, default="auto"
-        See :func:`nldr.robust_kpca.closed_form_rank_penalty`.
-
-    Returns
-    -------
-    C : array, shape (n_samples, n_samples)
-        ``diag(l) U^T``, rows in decreasing eigenvalue order; rows beyond the rank are zero.
-    """
-    S = as_float_matrix(S, "S")
-    gamma, tau, rho = check_positive(gamma, "gamma"), check_positive(tau, "tau"), check_positive(rho, "rho")
-    K = rbf(S, gamma)
-    if _check_center(center):
-        K = center_kernel(K)
-    _, U, l = spectrum(K, tau, rho, check_eigensolver(eigensolver))
-    return kernel_factor(l, U)
 
 
 def _regularized_energy(
