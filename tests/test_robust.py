@@ -318,25 +318,54 @@ def test_robust_scale_delta_is_the_rule_on_the_least_squares_fits_residuals_of_i
 
 
 def test_a_typo_in_a_huber_search_s_solver_options_is_refused_before_any_solve(monkeypatch):
-    import nldr.model_selection.robust as module
-    from nldr.model_selection import HoldoutSearch, HuberRegularizer, RobustScaleDelta
+    import nldr.impute.regularizer as module
+    from nldr.impute import KernelRegularizerImputer
+    from nldr.model_selection import HoldoutSearch, RobustScaleDelta
 
     calls = []
     monkeypatch.setattr(module, "minimize_regularized", lambda *a, **k: calls.append(1))
     W = np.where(np.random.default_rng(0).random((12, 3)) > 0.2, 1.0, np.nan)
     W[0] = 1.0
-    for solver, match in [({"rho_maxx": 1.0}, "rho_maxx"), ({"options": {"tol": -1.0}}, "tol"),
-                          ({"method": "nystroem", "options": {"landmark": 5}}, "landmark")]:  # fmt: skip
+    for solver, match in [({"schedule": {"rho_maxx": 1.0}}, "rho_maxx"), ({"options": {"tol": -1.0}}, "tol"),
+                          ({"method": "nystroem", "options": {"landmark": 5}}, "landmark"),
+                          ({"delta": 0.0}, "delta"), ({"loss": "l1"}, "loss")]:  # fmt: skip
         # the refit's solver (the estimator's) and the folds' (fold_params) are both checked
         for estimator, folds in [
-            (HuberRegularizer(solver=solver), {}),
-            (HuberRegularizer(), {"solver": solver}),
+            (KernelRegularizerImputer(**{"loss": "huber", **solver}), {}),
+            (KernelRegularizerImputer(loss="huber"), solver),
         ]:
             grid = {"tau": [0.1, 1.0]}
-            search = HoldoutSearch(estimator, grid, derive=RobustScaleDelta(), fold_params=folds)
+            search = HoldoutSearch(estimator, grid, path="tau", derive=RobustScaleDelta(), fold_params=folds)
             with pytest.raises(ValueError, match=match):
                 search.fit(W)
     assert calls == []
+
+
+def test_the_huber_loss_is_the_masked_huber_solve_and_least_squares_within_delta():
+    """loss="huber" solves minimize_regularized with MaskedHuber (same bits as the direct call), and
+    with delta above every residual it is the least-squares solve (the two data terms agree)."""
+    from nldr.baselines._masked import mean_fill
+    from nldr.data_terms import MaskedHuber
+    from nldr.impute import KernelRegularizerImputer
+    from nldr.regularizer import minimize_regularized
+
+    rng = np.random.default_rng(4)
+    t = rng.uniform(0, 2 * np.pi, 30)
+    X = np.c_[np.cos(t), np.sin(t), 0.3 * np.cos(2 * t)]
+    mask = rng.random(X.shape) > 0.2
+    mask[:, 0] |= ~mask.any(axis=1)
+    X[rng.random(X.shape) < 0.05] += 3.0  # a few gross errors
+    W = np.where(mask, X, np.nan)
+    kw = {"standardize": False, "gamma": 1.0, "tau": 0.1, "method": "exact", "schedule": {"rho_max": 100.0}}
+    huber = KernelRegularizerImputer(loss="huber", delta=0.05, **kw).fit(W)
+    Z = np.where(mask, X, 0.0)
+    direct = minimize_regularized(
+        MaskedHuber(Z, mask, 0.05), mean_fill(Z, mask), gamma=1.0, tau=0.1, method="exact", rho_max=100.0
+    )
+    np.testing.assert_array_equal(huber.completed_, direct.x)
+    wide = KernelRegularizerImputer(loss="huber", delta=1e6, **kw).fit_transform(W)
+    ls = KernelRegularizerImputer(**kw).fit_transform(W)
+    np.testing.assert_allclose(wide, ls, rtol=0, atol=1e-6 * np.abs(ls).max())
 
 
 def test_robust_experiment_jobs_and_summary():

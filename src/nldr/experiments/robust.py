@@ -15,7 +15,8 @@ Every search is :class:`nldr.model_selection.HoldoutSearch`:
 - ``Ours (LS)``: the regularizer with masked least squares (:class:`nldr.impute.KernelRegularizerImputer`
   in the data's units) over (tau, gamma), smallest mean error;
 - ``Ours (Huber)``: the regularizer with :class:`nldr.data_terms.MaskedHuber`
-  (:class:`nldr.model_selection.HuberRegularizer`) over (tau, gamma), delta by the robust-scale rule
+  (``KernelRegularizerImputer(loss="huber")``) over (tau, gamma), its tau paths warm-started as least
+  squares' (without the early stop), delta by the robust-scale rule
   (:class:`~nldr.model_selection.RobustScaleDelta`: 1.345 x the MAD scale of the least-squares
   residuals at the same tau and gamma, on each fit's own training entries);
 - ``RPCA``: principal component pursuit (:class:`nldr.impute.RobustPCAImputer`), its weight lam as a
@@ -37,7 +38,7 @@ import pandas as pd
 
 from ..datasets import load_oil
 from ..impute import KernelRegularizerImputer
-from ..model_selection import HoldoutSearch, HuberRegularizer, RobustScaleDelta, baseline_grid, median_gamma
+from ..model_selection import HoldoutSearch, RobustScaleDelta, baseline_grid, median_gamma
 from .base import Experiment, Job, JobOutput, summary_stats
 from .table2 import random_mask
 
@@ -178,16 +179,19 @@ class Robust(Experiment):
                 "holdout": settings["holdout"],
                 "scoring": "absolute",
             }
-            folds = {**schedule, "options": dict(FOLD_TOLERANCES)}
             start = time.perf_counter()
-            fold_ls = {"options": dict(FOLD_TOLERANCES)}
-            ls = HoldoutSearch(ours, candidates, path="tau", stop_factor=1.5, fold_params=fold_ls, **search)
+            folds = {"options": dict(FOLD_TOLERANCES)}
+            ls = HoldoutSearch(ours, candidates, path="tau", stop_factor=1.5, fold_params=folds, **search)
             X_hat = ls.fit_transform(W)
             record("Ours (LS)", X_hat, time.perf_counter() - start, _words(ls.best_params_))
             start = time.perf_counter()
+            # the same estimator with the Huber loss, each fold's tau path warm-started the same way;
+            # delta per fit from the least-squares fit's residuals at the same tau and gamma
             delta = RobustScaleDelta(settings["delta_factor"])
-            huber = HuberRegularizer(solver=schedule)
-            huber = HoldoutSearch(huber, candidates, derive=delta, fold_params={"solver": folds}, **search)
+            huber = KernelRegularizerImputer(
+                standardize=False, method="exact", schedule=dict(schedule), loss="huber"
+            )
+            huber = HoldoutSearch(huber, candidates, path="tau", derive=delta, fold_params=folds, **search)
             X_hat = huber.fit_transform(W)
             chosen = {**huber.best_params_, "delta": huber.best_estimator_.delta}
             record("Ours (Huber)", X_hat, time.perf_counter() - start, _words(chosen))

@@ -11,14 +11,16 @@ from .._options import ExactOptions, last_stage_only, solver_options
 from .._threads import blas_threads_for
 from .._validation import check_count, check_positive
 from ..baselines._masked import mean_fill, observed_column_means
-from ..data_terms import MaskedLeastSquares
+from ..data_terms import MaskedHuber, MaskedLeastSquares
 from ..kernels import center_kernel, rbf_kernel, squared_distances
 from ..preimage import Subspace, average_solutions, complete_from_starts, nearest_rows
 from ..regularizer import minimize_regularized
 from ._base import MaskedImputerBase
 
-__all__ = ["KernelRegularizerImputer", "AUTO_EXACT_MAX_ROWS", "MEDIAN_RULE_MULTIPLE", "METHODS"]
+__all__ = ["KernelRegularizerImputer", "AUTO_EXACT_MAX_ROWS", "MEDIAN_RULE_MULTIPLE", "METHODS", "LOSSES"]
 
+#: data losses of ``loss``
+LOSSES = ("squared", "huber")
 #: solver paths of ``method``: "auto" and minimize_regularized's methods
 METHODS = ("auto", "exact", "nystroem", "nystroem-warm")
 #: keys of ``schedule``: minimize_regularized's penalty schedule
@@ -61,7 +63,8 @@ class KernelRegularizerImputer(MaskedImputerBase):
         min ||mask o (X - S)||_F^2 + rho/2 ||K(S) - C^T C||_F^2 + tau ||C||_*,
 
     by the penalty method on rho (:func:`nldr.regularizer.minimize_regularized` with
-    :class:`~nldr.data_terms.MaskedLeastSquares`, from mean imputation), with the RBF kernel
+    :class:`~nldr.data_terms.MaskedLeastSquares`, or the Huber loss with ``loss="huber"``, from mean
+    imputation), with the RBF kernel
     ``K_ij = exp(-gamma ||s_i - s_j||^2)``. ``fit`` does the same and keeps the learnt manifold: the
     rows S and the kernel factor C, whose non-zero rows span the principal subspace in feature space.
     ``transform`` completes rows never seen against that manifold: the observed entries stay, the
@@ -133,6 +136,16 @@ class KernelRegularizerImputer(MaskedImputerBase):
         ``options`` sets it). This is how a path of taus or widths is solved cheaply, e.g. by
         :class:`nldr.model_selection.HoldoutSearch` with ``path="tau"``. The first fit, or one on
         another shape, solves the full schedule from mean imputation.
+    loss : {"squared", "huber"}, default "squared"
+        The data term on the observed entries: masked least squares
+        (:class:`~nldr.data_terms.MaskedLeastSquares`), or the masked Huber loss
+        (:class:`~nldr.data_terms.MaskedHuber`: squared within ``delta``, linear beyond), for data
+        with gross errors among the observed entries. ``transform`` of new rows is the same for
+        both (the observed entries are kept).
+    delta : float > 0, default 1.0
+        The Huber threshold, in the units of the solved matrix (standardised units when
+        ``standardize``); used with ``loss="huber"`` only.
+        :class:`nldr.model_selection.RobustScaleDelta` sets it from a least-squares fit's residuals.
 
     Attributes
     ----------
@@ -185,6 +198,8 @@ class KernelRegularizerImputer(MaskedImputerBase):
         weights="uniform",
         random_state=None,
         warm_start=False,
+        loss="squared",
+        delta=1.0,
     ):
         self.missing_values = missing_values
         self.gamma = gamma
@@ -200,6 +215,8 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self.weights = weights
         self.random_state = random_state
         self.warm_start = warm_start
+        self.loss = loss
+        self.delta = delta
 
     _min_samples = 2
 
@@ -226,6 +243,9 @@ class KernelRegularizerImputer(MaskedImputerBase):
         solver_options("nystroem-warm" if self.method == "auto" else self.method, options)
         if not isinstance(self.warm_start, bool | np.bool_):
             raise ValueError(f"warm_start must be True or False; got {self.warm_start!r}")
+        if self.loss not in LOSSES:
+            raise ValueError(f"loss must be one of {LOSSES}; got {self.loss!r}")
+        check_positive(self.delta, "delta")
         return gamma, tau
 
     def _standardisation(self, W, mask):
@@ -267,7 +287,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self.tau_ = tau
         self.method_, kwargs = self._solver_arguments(W.shape[0], warm)
         result = minimize_regularized(
-            MaskedLeastSquares(Z, mask), S0, gamma=self.gamma_, tau=tau, center=bool(self.center), **kwargs
+            self._data_term(Z, mask), S0, gamma=self.gamma_, tau=tau, center=bool(self.center), **kwargs
         )
         S = result.x
         self.manifold_rows_ = S
@@ -276,6 +296,12 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self.n_components_ = int(keep.size)
         X_hat = S if not self.standardize else S * self.scale_ + self.mean_
         return X_hat, result
+
+    def _data_term(self, Z, mask):
+        """The data term on the solved matrix Z: masked least squares, or Huber (delta in Z's units)."""
+        if self.loss == "huber":
+            return MaskedHuber(Z, mask, float(self.delta))
+        return MaskedLeastSquares(Z, mask)
 
     def _subspace(self) -> Subspace:
         """The principal subspace spanned by C's rows, in the form :mod:`nldr.preimage` takes."""

@@ -62,7 +62,7 @@ which must hide entries, see the two about equal and every rule picks the wide o
 
 from .folds import DEFAULT_TAUS, GAMMA_MULTIPLES, holdout_folds, median_gamma
 from .imputers import BASELINES, baseline_grid, iterative_imputer, missforest_imputer
-from .robust import HUBER_EFFICIENCY, HuberRegularizer, RobustScaleDelta, robust_scale
+from .robust import HUBER_EFFICIENCY, RobustScaleDelta, robust_scale
 from .search import EntryFolds, HoldoutSearch
 
 __all__ = [
@@ -78,6 +78,5 @@ __all__ = [
     "missforest_imputer",
     "HUBER_EFFICIENCY",
     "RobustScaleDelta",
-    "HuberRegularizer",
     "robust_scale",
 ]

@@ -19,19 +19,14 @@ method can predict.
 
 from __future__ import annotations
 
-import inspect
 from collections.abc import Mapping
 
 import numpy as np
-from sklearn.base import BaseEstimator, TransformerMixin, clone
+from sklearn.base import clone
 
-from .._options import merge_solver_kwargs, solver_options
 from .._validation import check_positive
-from ..baselines._masked import mean_fill
-from ..data_terms import MaskedHuber, MaskedLeastSquares
-from ..regularizer import minimize_regularized
 
-__all__ = ["HUBER_EFFICIENCY", "robust_scale", "RobustScaleDelta", "HuberRegularizer"]
+__all__ = ["HUBER_EFFICIENCY", "robust_scale", "RobustScaleDelta"]
 
 #: Huber's threshold for 95 % efficiency at the Gaussian, in standard deviations.
 HUBER_EFFICIENCY = 1.345
@@ -84,78 +79,3 @@ class RobustScaleDelta:
 
     def __repr__(self) -> str:
         return f"RobustScaleDelta(factor={self.factor}, least_squares={self.least_squares})"
-
-
-#: keywords of minimize_regularized a HuberRegularizer's ``solver`` may set (the others it sets itself)
-_SOLVER_KEYWORDS = frozenset(inspect.signature(minimize_regularized).parameters) - {
-    "data_term", "S0", "gamma", "tau", "center"
-}
-
-
-class HuberRegularizer(TransformerMixin, BaseEstimator):
-    """The regularizer with the Huber data term (:class:`~nldr.data_terms.MaskedHuber`), transductive.
-
-    ``fit_transform(X)`` (NaN where missing) runs :func:`~nldr.regularizer.minimize_regularized` from
-    mean imputation on X's observed entries in X's units, with the isolation guard, and returns the
-    solve's S (n, d); ``loss="squared"`` uses :class:`~nldr.data_terms.MaskedLeastSquares` instead (the
-    least-squares fit of :class:`RobustScaleDelta`). It completes the matrix it is fitted on only.
-
-    Parameters
-    ----------
-    gamma : float > 0
-        RBF inverse squared width (1 / units of X squared).
-    tau : float > 0
-        Trace-norm weight.
-    delta : float > 0, default 1.0
-        Huber threshold (units of X); :class:`RobustScaleDelta` sets it per fit in a search.
-    loss : {"huber", "squared"}, default "huber"
-    center : bool, default False
-    solver : dict, optional
-        Further keyword arguments of ``minimize_regularized`` (``rho0``, ``rho_growth``, ``rho_max``,
-        ``method``, ``options``).
-
-    Attributes
-    ----------
-    result_ : nldr.regularizer.RegularizerResult
-    """
-
-    def __init__(self, gamma=1.0, tau=0.1, delta=1.0, loss="huber", center=False, solver=None):
-        self.gamma = gamma
-        self.tau = tau
-        self.delta = delta
-        self.loss = loss
-        self.center = center
-        self.solver = solver
-
-    def _check_params(self):
-        if self.loss not in ("huber", "squared"):
-            raise ValueError(f"loss must be 'huber' or 'squared'; got {self.loss!r}")
-        check_positive(self.delta, "delta")
-        if self.solver is not None and not isinstance(self.solver, Mapping):
-            raise ValueError(f"solver must be a dict of minimize_regularized's keywords; got {self.solver!r}")
-        solver = dict(self.solver or {})
-        unknown = sorted(set(solver) - _SOLVER_KEYWORDS)
-        if unknown:
-            raise ValueError(
-                f"solver: minimize_regularized takes no keyword {', '.join(map(repr, unknown))}; "
-                f"these are set here or unknown (its others: {', '.join(sorted(_SOLVER_KEYWORDS))})"
-            )
-        solver_options(solver.get("method", "exact"), solver.get("options"))  # the method's own options
-
-    def fit_transform(self, X, y=None):
-        """Solve on X, shape (n, d), NaN where missing; return the solve's S, shape (n, d)."""
-        self._check_params()
-        X = np.asarray(X, dtype=np.float64)
-        mask = ~np.isnan(X)
-        W = np.where(mask, X, 0.0)
-        term = MaskedHuber(W, mask, self.delta) if self.loss == "huber" else MaskedLeastSquares(W, mask)
-        kwargs = merge_solver_kwargs(self.solver, {"options": {"isolation_guard": True}})
-        self.result_ = minimize_regularized(
-            term, mean_fill(W, mask), gamma=self.gamma, tau=self.tau, center=bool(self.center), **kwargs
-        )
-        return self.result_.x
-
-    def fit(self, X, y=None):
-        """:meth:`fit_transform` on X; returns self."""
-        self.fit_transform(X)
-        return self
