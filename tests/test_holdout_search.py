@@ -227,6 +227,24 @@ def test_row_folds_fit_on_some_rows_and_score_the_completion_of_the_others():
     assert search.best_score_ == pytest.approx(expected, rel=1e-12)
 
 
+def test_row_folds_with_inputs_transform_them_and_score_against_x():
+    """A fold (fit_rows, hidden, inputs) transforms ``inputs`` (say, corrupted copies of the scored
+    rows) and scores the output against X, the clean rows, on the hidden entries."""
+    X, _ = data(n=20)
+    fit_rows = np.arange(20) >= 5
+    hidden = np.zeros(X.shape, bool)
+    hidden[:5] = True  # every entry of the scored rows
+    inputs = X[:5] + 10.0
+    inputs[:, 1] = np.nan
+    search = HoldoutSearch(SimpleImputer(), {"strategy": ["mean"]}, folds=[(fit_rows, hidden, inputs)]).fit(X)
+    out = inputs.copy()
+    out[:, 1] = X[5:, 1].mean()  # the mean of the fit rows fills the NaN, the rest is returned as given
+    assert search.best_score_ == pytest.approx(np.mean((out - X[:5]) ** 2), rel=1e-12)
+    for bad in [(fit_rows, hidden, inputs[:4]), (fit_rows, hidden, inputs[:, :2])]:
+        with pytest.raises(ValueError, match="inputs"):
+            HoldoutSearch(SimpleImputer(), {"strategy": ["mean"]}, folds=[bad]).fit(X)
+
+
 def test_entry_folds_are_holdout_folds_of_the_observed_entries():
     _, W = data()
     for holdout in (None, 0.1):

@@ -39,10 +39,11 @@ import numpy as np
 import pandas as pd
 from sklearn.datasets import load_digits
 from sklearn.decomposition import PCA, KernelPCA
+from sklearn.impute import SimpleImputer
+from sklearn.pipeline import Pipeline
 
-from ..impute import KernelRegularizerImputer
+from ..impute import KernelRegularizerImputer, Reconstruction, RobustKernelPCAImputer
 from ..model_selection import HoldoutSearch
-from ..robust_kpca import RobustKernelPCA
 from .base import Experiment, Job, JobOutput, summary_stats
 
 __all__ = ["Denoising", "METHODS", "noisy_digits", "pixel_parts"]
@@ -69,53 +70,13 @@ def pixel_parts(shape: tuple[int, int], n_parts: int, seed: int) -> list[np.ndar
     return [labels == k for k in range(n_parts)]
 
 
-def _heldout_score(predict, Y, parts):
-    """Sum over parts J of ||predict(Y, observed) [J] - Y[J]||^2; predict sees only Y off J."""
-    total = 0.0
-    for J in parts:
-        Y_hat = predict(np.where(J, np.nan, Y), ~J)
-        total += float(np.sum((Y_hat - Y)[J] ** 2))
-    return total
-
-
-def _filled(Y, observed, means):
-    return np.where(observed, Y, means)
-
-
-def _pca_predict(n_components):
-    def fit(Y_fit):
-        model, means = PCA(n_components=n_components).fit(Y_fit), Y_fit.mean(axis=0)
-        return lambda Y, obs: model.inverse_transform(model.transform(_filled(Y, obs, means)))
-
-    return fit
-
-
-def _kpca_predict(gamma, n_components, alpha):
-    def fit(Y_fit):
-        model = KernelPCA(
-            n_components=n_components, kernel="rbf", gamma=gamma, alpha=alpha, fit_inverse_transform=True
-        ).fit(Y_fit)
-        means = Y_fit.mean(axis=0)
-        return lambda Y, obs: model.inverse_transform(model.transform(_filled(Y, obs, means)))
-
-    return fit
-
-
-def _rkpca_predict(gamma, tau, rho):
-    def fit(Y_fit):
-        model, means = RobustKernelPCA(gamma=gamma, tau=tau).fit(Y_fit), Y_fit.mean(axis=0)
-        every = np.ones(Y_fit.shape[1], dtype=bool)
-        return lambda Y, obs: model.complete(_filled(Y, obs, means), np.broadcast_to(every, Y.shape), rho=rho)
-
-    return fit
-
-
 def _sum_squared(Y, Y_hat, J) -> float:
     """||Y_hat[J] - Y[J]||^2, the held-out-pixel score (summed over a part's pixels)."""
     return float(np.sum((Y_hat - Y)[J] ** 2))
 
 
 def _grids(cv):
+    """Each method's candidates, in the order of the search (a tie goes to the first)."""
     return {
         "PCA": [{"n_components": k} for k in cv["pca_components"]],
         "KernelPCA": [
@@ -129,7 +90,24 @@ def _grids(cv):
     }
 
 
-_FACTORIES = {"PCA": _pca_predict, "KernelPCA": _kpca_predict, "RobustKernelPCA": _rkpca_predict}
+def _denoiser(method: str) -> tuple[Pipeline, str]:
+    """A fit-then-apply method as an estimator of images with NaN at held-out pixels, and the prefix
+    of its knobs: held-out pixels filled with the fit's pixel means (SimpleImputer), then the
+    reconstruction (PCA, KernelPCA) or RobustKernelPCA's denoising with every pixel observed."""
+    if method == "RobustKernelPCA":
+        return Pipeline([("fill", SimpleImputer()), ("denoise", RobustKernelPCAImputer())]), "denoise__"
+    model = PCA() if method == "PCA" else KernelPCA(kernel="rbf", fit_inverse_transform=True)
+    return Pipeline([("fill", SimpleImputer()), ("denoise", Reconstruction(model))]), "denoise__estimator__"
+
+
+def _validation_folds(n_fit: int, parts: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The search's folds on the training split: fit on its first ``n_fit`` images, score each pixel
+    part J (boolean (n_val, d)) of the others, held out."""
+    folds = []
+    for J in parts:
+        fit_rows = np.arange(n_fit + J.shape[0]) < n_fit
+        folds.append((fit_rows, np.vstack([np.zeros((n_fit, J.shape[1]), dtype=bool), J])))
+    return folds
 
 
 class Denoising(Experiment):
@@ -164,9 +142,8 @@ class Denoising(Experiment):
         _, Y_train, clean, Y_test = noisy_digits(noise, seed, settings["n_train"], settings["n_test"])
         cv, ours = settings["cv"], settings["ours"]
         n_val = int(round(cv["validation"] * Y_train.shape[0]))
-        Y_fit, Y_val = Y_train[:-n_val], Y_train[-n_val:]
         n_sub = ours["n_images"]
-        parts = pixel_parts(Y_val.shape, cv["n_parts"], seed)
+        parts = pixel_parts((n_val, Y_train.shape[1]), cv["n_parts"], seed)
         parts_sub = pixel_parts((n_sub, Y_train.shape[1]), cv["n_parts"], seed + 1)
         rows, arrays = [], {"clean": clean[:16], "noisy": Y_test[:16]}
         grids = _grids(cv)
@@ -186,11 +163,12 @@ class Denoising(Experiment):
             arrays[method] = X_hat[:16]
             say(f"noise={noise} seed={seed} {method:16s} mse={rows[-1]['mse']:.5f} {params}")
 
-        for method, factory in _FACTORIES.items():
-            scores = [_heldout_score(factory(**c)(Y_fit), Y_val, parts) for c in grids[method]]
-            best = grids[method][int(np.argmin(scores))]
-            predict = factory(**best)(Y_train)
-            record(method, predict(Y_test, np.ones(Y_test.shape, bool)), best)
+        folds = _validation_folds(Y_train.shape[0] - n_val, parts)
+        for method in ("PCA", "KernelPCA", "RobustKernelPCA"):
+            estimator, prefix = _denoiser(method)
+            grid = [{prefix + key: [value] for key, value in c.items()} for c in grids[method]]
+            search = HoldoutSearch(estimator, grid, folds=folds, scoring=_sum_squared).fit(Y_train)
+            record(method, search.transform(Y_test), grids[method][search.best_index_])
 
         if n_sub > 0:
             # Ours: transductive on the noisy test images; the pixel parts are the search's folds

@@ -1,13 +1,13 @@
 """Out of sample (not in the paper; issue 18): complete new oil-flow rows against a manifold learned once.
 
 The paper computes pre-images only for the rows its manifold was learned from and leaves new samples as
-future work (its Section 4.1). Here :meth:`nldr.robust_kpca.RobustKernelPCA.complete` learns the manifold
+future work (its Section 4.1). Here :class:`nldr.impute.RobustKernelPCAImputer` learns the manifold
 on the 1000 rows of ``DataTrn.txt`` and completes the rows of ``DataTst.txt`` (never seen in the fit),
 each with entries missing independently with probability p.
 
 One job = one p and one seeded test mask. Methods, all fitted on the same training rows:
 
-- ``complete``: RobustKernelPCA fitted on the training rows, then the pre-image step per new row (hard
+- ``complete``: RobustKernelPCAImputer fitted on the training rows, then the pre-image step per new row (hard
   limit: observed entries kept, missing ones minimise the feature distance to the learned subspace);
 - ``KNNImputer`` and ``IterativeImputer`` (scikit-learn, ``fit`` on the training rows, ``transform`` on
   the masked test rows);
@@ -47,10 +47,8 @@ from sklearn.experimental import enable_iterative_imputer  # noqa: F401
 from sklearn.impute import IterativeImputer, KNNImputer
 
 from ..datasets import load_oil
-from ..impute import KernelRegularizerImputer
+from ..impute import KernelRegularizerImputer, RobustKernelPCAImputer
 from ..model_selection import HoldoutSearch
-from ..preimage import average_solutions
-from ..robust_kpca import RobustKernelPCA
 from .base import Experiment, Job, JobOutput, summary_stats
 from .robust import gross_corruption
 from .table2 import random_mask
@@ -79,45 +77,37 @@ def cv_splits(n: int, holdout_rows: int, n_folds: int, seed: int):
         yield np.setdiff1d(perm, held), held
 
 
-def _cv_folds(X, p, seed, cv):
-    for k, (fit, held) in enumerate(cv_splits(X.shape[0], cv["holdout_rows"], cv["n_folds"], seed)):
-        mask = random_mask((held.size, X.shape[1]), p, seed + 1000 + k)
-        yield X[fit], X[held], mask
-
-
 def select_complete(X, p, seed, cv) -> tuple[dict, pd.DataFrame]:
-    """Grid search of ``complete``'s gamma, tau, neighbours, starts and weights by hold-out SSE on
-    training rows.
+    """``complete``'s gamma, tau, neighbours, starts and weights by the hold-out SSE on training rows
+    (:func:`row_folds`; :class:`~nldr.impute.RobustKernelPCAImputer` in a
+    :class:`~nldr.model_selection.HoldoutSearch`).
 
-    The "each" candidates share one set of solves: :meth:`~nldr.robust_kpca.RobustKernelPCA.complete_each`
-    from the largest neighbour count, averaged over its first k solutions for every k (exactly
-    ``complete(..., n_neighbors=k, starts="each")``). Returns the best parameters (lowest total
-    hidden-entry SSE over the folds) and the whole grid's scores.
+    Per (gamma, tau) the candidates share one manifold per fold, and the ``starts="each"`` ones one
+    set of solves: the search runs the neighbour counts as a warm path from the largest down, each
+    averaging the largest count's first local minima (the imputer's ``warm_start``). Returns the
+    parameters with the lowest mean hidden-entry SSE over the folds (as a dict of ``gamma, tau,
+    n_neighbors, starts, weights``) and the search's ``cv_results_`` as a frame.
     """
-    scores = {}
-    ks = sorted(cv["n_neighbors"])
+    ks = sorted(cv["n_neighbors"], reverse=True)
+    grid = []
+    for gamma, log10_tau in itertools.product(cv["gammas"], cv["log10_tau"]):
+        point = {"gamma": [gamma], "tau": [10.0**log10_tau], "n_neighbors": ks}
+        if "mean" in cv["starts"]:
+            grid.append({**point, "starts": ["mean"]})
+        if "each" in cv["starts"]:
+            grid.append({**point, "starts": ["each"], "weights": list(cv["weights"])})
+    folds = row_folds(X, p, seed, cv["holdout_rows"], cv["n_folds"])
+    imputer = RobustKernelPCAImputer(warm_start=True)
+    search = HoldoutSearch(imputer, grid, folds=folds, scoring=_sse, path="n_neighbors", refit=False).fit(X)
+    best = {"weights": "uniform", **search.best_params_}
+    chosen = {key: best[key] for key in ("gamma", "tau", "n_neighbors", "starts", "weights")}
+    return chosen, pd.DataFrame(search.cv_results_)
 
-    def add(key, X_hat, X_held, mask):
-        scores[key] = scores.get(key, 0.0) + float(np.sum((X_hat - X_held)[~mask] ** 2))
 
-    for X_fit, X_held, mask in _cv_folds(X, p, seed, cv):
-        W = np.where(mask, X_held, np.nan)
-        for gamma, log10_tau in itertools.product(cv["gammas"], cv["log10_tau"]):
-            model = RobustKernelPCA(gamma=gamma, tau=10.0**log10_tau).fit(X_fit)
-            if "mean" in cv["starts"]:
-                for k in ks:
-                    X_hat = model.complete(W, mask, n_neighbors=k, starts="mean")
-                    add((gamma, log10_tau, k, "mean", "uniform"), X_hat, X_held, mask)
-            if "each" in cv["starts"]:
-                solutions, distance = model.complete_each(W, mask, n_neighbors=ks[-1])
-                for k, weights in itertools.product(ks, cv["weights"]):
-                    X_hat = average_solutions(solutions[:, :k], distance[:, :k], weights)
-                    add((gamma, log10_tau, k, "each", weights), X_hat, X_held, mask)
-    best = min(scores, key=scores.get)
-    columns = ["gamma", "log10_tau", "n_neighbors", "starts", "weights", "cv_sse"]
-    frame = pd.DataFrame([(*k, v) for k, v in scores.items()], columns=columns)
-    keys = ("gamma", "tau", "n_neighbors", "starts", "weights")
-    return dict(zip(keys, (best[0], 10.0 ** best[1], *best[2:]), strict=True)), frame
+def _corrupt_manifold(c) -> dict:
+    """The fixed knobs of ``complete`` in the ``corrupt`` jobs (config block ``corrupt``)."""
+    tau = 10.0 ** c["log10_tau"]
+    return {"gamma": c["gamma"], "tau": tau, "n_neighbors": c["n_neighbors"], "starts": "each"}
 
 
 def select_denoising(X, p, share, seed, cv, c) -> tuple[dict, dict]:
@@ -126,26 +116,30 @@ def select_denoising(X, p, share, seed, cv, c) -> tuple[dict, dict]:
     in ``share`` of its observed entries (:func:`nldr.experiments.robust.gross_corruption`, seeded), and
     the SSE against the clean held-out rows over all entries is scored (training rows are clean, so the
     corruption is simulated there; the test rows' truth is never used). Returns the best squared-loss
-    and the best Huber candidate, each a dict of ``complete`` keyword arguments."""
-    scores = {}
-    folds = list(cv_splits(X.shape[0], cv["holdout_rows"], c["n_folds"], seed))
+    and the best Huber candidate, each a dict of ``complete`` keyword arguments (sorted by name).
+
+    Each search's folds are ``(fit_rows, hidden, inputs)``: the inputs are the corrupted blocks, the
+    score is against X (clean); the candidates of a fold share one manifold (a warm path in rho)."""
+    n, d = X.shape
     sd = c["outlier_sd"]
-    for k, (fit, held) in enumerate(folds):
-        mask = random_mask((held.size, X.shape[1]), p, seed + 1000 + k)
-        W, _ = gross_corruption(X[held], mask, [share], seed + 2000 + k, low=sd["low"], high=sd["high"])[
-            share
-        ]
-        model = RobustKernelPCA(gamma=c["gamma"], tau=10.0 ** c["log10_tau"]).fit(X[fit])
-        candidates = [{"loss": "squared", "rho": r} for r in c["rho"]]
-        candidates += [{"loss": "huber", "rho": r, "delta": d} for r in c["rho"] for d in c["delta"]]
-        for kw in candidates:
-            X_hat = model.complete(W, mask, n_neighbors=c["n_neighbors"], starts="each", **kw)
-            key = tuple(sorted(kw.items()))
-            scores[key] = scores.get(key, 0.0) + float(np.sum((X_hat - X[held]) ** 2))
-    best = {}
-    for loss in ("squared", "huber"):
-        key = min((key for key in scores if dict(key)["loss"] == loss), key=scores.get)
-        best[loss] = dict(key)
+    folds = []
+    for k, (fit, held) in enumerate(cv_splits(n, cv["holdout_rows"], c["n_folds"], seed)):
+        mask = random_mask((held.size, d), p, seed + 1000 + k)
+        corrupted = gross_corruption(X[held], mask, [share], seed + 2000 + k, low=sd["low"], high=sd["high"])
+        W = corrupted[share][0]
+        fit_rows = np.zeros(n, dtype=bool)
+        fit_rows[fit] = True
+        hidden = np.zeros((n, d), dtype=bool)
+        hidden[held] = True  # scored on every entry of the block
+        order = np.argsort(held)  # the block's rows in X's order, as the search scores them
+        folds.append((fit_rows, hidden, np.where(mask, W, np.nan)[order]))
+    imputer = RobustKernelPCAImputer(**_corrupt_manifold(c), warm_start=True)
+    grids = {
+        "squared": {"loss": ["squared"], "rho": list(c["rho"])},
+        "huber": {"loss": ["huber"], "rho": list(c["rho"]), "delta": list(c["delta"])},
+    }
+    search = {"folds": folds, "scoring": _sse, "path": "rho", "refit": False}
+    best = {loss: HoldoutSearch(imputer, grid, **search).fit(X).best_params_ for loss, grid in grids.items()}
     return best["squared"], best["huber"]
 
 
@@ -253,7 +247,7 @@ class OutOfSample(Experiment):
             c = settings["corrupt"]
             sd = c["outlier_sd"]
             W, _ = gross_corruption(X_test, mask, [share], seed, low=sd["low"], high=sd["high"])[share]
-            model = RobustKernelPCA(gamma=c["gamma"], tau=10.0 ** c["log10_tau"]).fit(X_train)
+            W_missing = np.where(mask, W, np.nan)
             fixed = {"gamma": c["gamma"], "log10_tau": c["log10_tau"], "n_neighbors": c["n_neighbors"]}
             runs = [("complete", {})]
             runs += zip(
@@ -262,23 +256,18 @@ class OutOfSample(Experiment):
                 strict=True,
             )
             for method, kw in runs:
-                X_hat, seconds = _timed(
-                    lambda kw=kw: model.complete(W, mask, n_neighbors=c["n_neighbors"], starts="each", **kw)
-                )
+                imputer = RobustKernelPCAImputer(**_corrupt_manifold(c), **kw).fit(X_train)
+                X_hat, seconds = _timed(lambda imputer=imputer: imputer.transform(W_missing))
                 record(method, X_hat, seconds, X_test.shape[0], {**fixed, **kw})
             knn = select_knn(X_train, p, seed, cv)
             imputer = KNNImputer(**knn).fit(X_train)
-            X_hat, seconds = _timed(lambda: imputer.transform(np.where(mask, W, np.nan)))
+            X_hat, seconds = _timed(lambda: imputer.transform(W_missing))
             record("KNNImputer", X_hat, seconds, X_test.shape[0], knn)
             return JobOutput(rows=pd.DataFrame(rows))
 
         chosen, _ = select_complete(X_train, p, seed, cv)
-        model = RobustKernelPCA(gamma=chosen["gamma"], tau=chosen["tau"]).fit(X_train)
-        X_hat, seconds = _timed(
-            lambda: model.complete(
-                W, mask, n_neighbors=chosen["n_neighbors"], starts=chosen["starts"], weights=chosen["weights"]
-            )
-        )
+        model = RobustKernelPCAImputer(**chosen).fit(X_train)
+        X_hat, seconds = _timed(lambda: model.transform(W))
         record("complete", X_hat, seconds, X_test.shape[0], {**chosen, "rank": model.n_components_})
 
         knn = select_knn(X_train, p, seed, cv)

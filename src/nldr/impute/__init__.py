@@ -8,6 +8,9 @@ underneath (:mod:`nldr.regularizer`, :mod:`nldr.baselines`); each estimator keep
 result object as ``result_`` where there is one.
 
 - :class:`KernelRegularizerImputer`: the paper's method, the non-linear dimensionality regularizer.
+- :class:`RobustKernelPCAImputer`: new rows completed (or denoised) against the closed-form robust
+  kernel PCA of complete training rows; :class:`Reconstruction`: a decomposition (PCA, KernelPCA)
+  as a denoiser.
 - The paper's baselines (Table 2): :class:`PPCAImputer`, :class:`PKPCAImputer`,
   :class:`RKPCAImputer`, :class:`NearestNeighbourImputer` (1-NN).
 - Peers not in the paper: :class:`SoftImputer` (nuclear-norm completion) and
@@ -19,15 +22,18 @@ scikit-learn's, used as they are.
 
 from .kernel_pca import PKPCAImputer, RKPCAImputer
 from .linear import PPCAImputer, RobustPCAImputer, SoftImputer
+from .manifold import Reconstruction, RobustKernelPCAImputer
 from .neighbours import NearestNeighbourImputer
 from .regularizer import KernelRegularizerImputer
 
 __all__ = [
     "KernelRegularizerImputer",
+    "RobustKernelPCAImputer",
     "PPCAImputer",
     "PKPCAImputer",
     "RKPCAImputer",
     "NearestNeighbourImputer",
     "SoftImputer",
     "RobustPCAImputer",
+    "Reconstruction",
 ]

@@ -83,10 +83,11 @@ def _masked(X, hidden):
 
 
 class _Fold:
-    """One fold: the rows the estimator is fitted on (None: transductive, every row) and hidden entries."""
+    """One fold: the rows the estimator is fitted on (None: transductive, every row), hidden entries,
+    and optionally the scored rows as the estimator sees them (default: with their hidden entries NaN)."""
 
-    def __init__(self, hidden, fit_rows=None):
-        self.hidden, self.fit_rows = hidden, fit_rows
+    def __init__(self, hidden, fit_rows=None, inputs=None):
+        self.hidden, self.fit_rows, self.inputs = hidden, fit_rows, inputs
 
     def complete(self, estimator, X):
         """The estimator's completion of the scored rows of X, and those rows' hidden entries."""
@@ -94,7 +95,8 @@ class _Fold:
             return estimator.fit_transform(_masked(X, self.hidden)), X, self.hidden
         apply = ~self.fit_rows
         estimator.fit(_masked(X[self.fit_rows], self.hidden[self.fit_rows]))
-        return estimator.transform(_masked(X[apply], self.hidden[apply])), X[apply], self.hidden[apply]
+        inputs = _masked(X[apply], self.hidden[apply]) if self.inputs is None else self.inputs
+        return estimator.transform(inputs), X[apply], self.hidden[apply]
 
 
 def _solve(estimator, fold, X, scoring, error_score, derive):
@@ -189,6 +191,9 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
     mask ``np.hstack([h, h])``, and ``scoring`` can score per point. A fold can also fit on some rows
     and score others (``(fit_rows, hidden)``: ``fit`` on the fit rows, ``transform`` of the others
     with their hidden entries set to NaN): completion of new rows against a manifold learnt on others.
+    A triple ``(fit_rows, hidden, inputs)`` transforms ``inputs`` instead, the scored rows (in X's
+    order) as the estimator is to see them, and scores the output against X on the hidden entries:
+    for a denoiser, X's rows corrupted by a simulated noise, scored against the clean X.
 
     Parameters
     ----------
@@ -204,7 +209,8 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
     folds : object with ``split(X)``, or sequence, optional
         The folds, instead of ``EntryFolds(n_folds, holdout=holdout, random_state=random_state)``:
         each a bool array of X's shape (True: hidden; a subset of the observed entries, not empty), or
-        a pair ``(fit_rows, hidden)`` with ``fit_rows`` a bool array (n,) (see above).
+        a pair ``(fit_rows, hidden)`` with ``fit_rows`` a bool array (n,), or a triple
+        ``(fit_rows, hidden, inputs)`` with ``inputs`` an array (rows not in fit_rows, d) (see above).
     rule : {"min", "one_se"}, default "min"
         "min": the smallest mean hold-out error. "one_se": among the candidates within one standard
         error (``std / sqrt(n_folds)``) of the smallest, filtered by ``prefer`` in turn, then the
@@ -360,7 +366,7 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
             raise ValueError("folds gives no fold")
         folds = []
         for k, fold in enumerate(raw):
-            fit_rows, hidden = (None, fold) if not isinstance(fold, tuple) else fold
+            fit_rows, hidden, inputs = (*fold, None)[:3] if isinstance(fold, tuple) else (None, fold, None)
             hidden = np.asarray(hidden)
             if hidden.shape != X.shape or hidden.dtype != bool:
                 raise ValueError(f"fold {k}: hidden entries must be a bool array of X's shape {X.shape}")
@@ -376,7 +382,14 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
                 fit_rows = np.asarray(fit_rows, dtype=bool)
                 if fit_rows.shape != (X.shape[0],) or fit_rows.all() or not fit_rows.any():
                     raise ValueError(f"fold {k}: fit_rows must be bool ({X.shape[0]},), neither all nor none")
-            folds.append(_Fold(hidden, fit_rows))
+            if inputs is not None:
+                inputs = np.asarray(inputs, dtype=np.float64)
+                if fit_rows is None or inputs.shape != (int((~fit_rows).sum()), X.shape[1]):
+                    raise ValueError(
+                        f"fold {k}: inputs must come with fit_rows and hold the scored rows, shape "
+                        f"(number of rows not in fit_rows, {X.shape[1]})"
+                    )
+            folds.append(_Fold(hidden, fit_rows, inputs))
         return folds
 
     # -- the search ---------------------------------------------------------------------------------

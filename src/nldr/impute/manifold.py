@@ -1,0 +1,269 @@
+"""Completion and denoising of new rows against a manifold learnt from complete rows.
+
+- :class:`RobustKernelPCAImputer`: the closed-form robust kernel PCA
+  (:class:`nldr.robust_kpca.RobustKernelPCA`, the paper's Theorem 3.1 on the training kernel) learnt
+  from the fully observed training rows; ``transform`` completes, and with a finite ``rho``
+  denoises, rows against it (:meth:`~nldr.robust_kpca.RobustKernelPCA.complete`).
+- :class:`Reconstruction`: any decomposition with ``inverse_transform`` (scikit-learn's ``PCA``,
+  ``KernelPCA(fit_inverse_transform=True)``) as a denoiser, ``X -> inverse_transform(transform(X))``.
+
+Unlike :class:`~nldr.impute.KernelRegularizerImputer`, neither is transductive: ``transform`` of a
+row depends on the fitted model and that row only, so ``fit_transform(X)`` is ``fit(X).transform(X)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from sklearn.base import BaseEstimator, OneToOneFeatureMixin, TransformerMixin, clone
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+from .._spectral import check_eigensolver
+from .._validation import check_count, check_positive
+from ..preimage import LOSSES, average_solutions
+from ..robust_kpca import RobustKernelPCA
+from ._base import MaskedImputerBase
+
+__all__ = ["RobustKernelPCAImputer", "Reconstruction"]
+
+
+class RobustKernelPCAImputer(MaskedImputerBase):
+    """New rows completed (and optionally denoised) against the robust kernel PCA of complete rows.
+
+    ``fit`` learns the manifold once from the training rows with every entry observed: the RBF
+    kernel's eigenvalues shrunk in closed form by tau (:class:`nldr.robust_kpca.RobustKernelPCA`
+    with rho = 1; the number of components follows from tau). Rows with a missing entry do not enter
+    the manifold. ``transform`` solves, per row w with observation mask m, the pre-image problem
+
+        min_x sum_j m_j l(x_j - w_j) + rho * dist(phi(x), principal subspace)^2
+
+    (:meth:`~nldr.robust_kpca.RobustKernelPCA.complete`): ``rho=None`` keeps the observed entries
+    and completes the missing ones; a finite rho lets every entry move (denoising), with the squared
+    or the Huber loss ``l``. The problem is not convex: the starts come from the ``n_neighbors``
+    training rows nearest on the observed entries, at their mean (``starts="mean"``) or one solve
+    from each with the local minima averaged (``starts="each"``).
+
+    This needs complete training rows (a clean reference set; learn once, complete new rows). To
+    learn the manifold from incomplete rows, use :class:`~nldr.impute.KernelRegularizerImputer`.
+    Not transductive: ``fit_transform(X)`` is ``fit(X).transform(X)`` (with ``rho=None`` the complete
+    training rows come back unchanged).
+
+    Parameters
+    ----------
+    missing_values : np.nan or float, default np.nan
+    gamma : float > 0 or None, default None
+        RBF inverse squared width, 1 / (units of X)^2; None: 1 / n_features.
+    tau : float > 0, default 1.0
+        Trace-norm weight of the closed form (kernel units; larger tau, fewer components).
+    center : bool, default True
+        Centre the kernel in feature space (as kernel PCA does).
+    eigensolver : {"auto", "partial", "krylov", "full"}, default "auto"
+        How the training kernel is decomposed (:class:`~nldr.robust_kpca.RobustKernelPCA`).
+    rho : float > 0 or None, default None
+        ``transform``: weight of the squared feature distance (kernel units) against the data loss
+        (units of X squared); None is the hard limit (completion only).
+    loss : {"squared", "huber"}, default "squared"
+        ``transform``'s data loss on the observed entries (with ``rho=None`` it only ranks the
+        neighbours).
+    delta : float > 0 or None, default None
+        The Huber threshold (units of X); required with ``loss="huber"``.
+    n_neighbors : int >= 1, default 5
+        Training rows nearest on the observed entries, which give the starts.
+    starts : {"mean", "each"}, default "mean"
+    weights : {"uniform", "distance"}, default "uniform"
+        How ``starts="each"`` averages its local minima (by inverse root-mean loss with "distance").
+    warm_start : bool, default False
+        Reuse work across fits and transforms that differ only in ``transform``'s knobs, as a search
+        over ``n_neighbors``, ``starts`` and ``weights`` does (:class:`nldr.model_selection.HoldoutSearch`
+        with ``path="n_neighbors"``, the neighbour counts in decreasing order):
+
+        - a fit on the same complete rows with the same ``gamma``, ``tau``, ``center`` and
+          ``eigensolver`` keeps the fitted manifold (the closed form would return it again);
+        - a ``transform`` with ``starts="each"`` of the same rows as the previous one, with the same
+          ``rho``, ``loss`` and ``delta`` and no more neighbours, averages the previous
+          transform's local minima from its first ``n_neighbors`` neighbours instead of solving again
+          (every ``starts="each"`` transform keeps its local minima for this).
+          Those are the same starts; the rows are solved in blocks that share L-BFGS's stopping test,
+          so the answer matches a cold transform to the solver's tolerance, not bit for bit.
+
+    Attributes
+    ----------
+    model_ : nldr.robust_kpca.RobustKernelPCA
+        The manifold, fitted on the complete training rows.
+    gamma_ : float
+    n_components_ : int
+        Components of the learnt principal subspace.
+    n_features_in_ : int
+    feature_names_in_ : array of str (when X has string column names)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from nldr.impute import RobustKernelPCAImputer
+    >>> rng = np.random.default_rng(0)
+    >>> t = rng.uniform(0, 2 * np.pi, 200)
+    >>> X = np.c_[np.cos(t), np.sin(t), 0.5 * np.cos(2 * t)]
+    >>> imputer = RobustKernelPCAImputer(gamma=1.0, tau=0.01).fit(X[:150])
+    >>> X_new = np.where(rng.random((50, 3)) < 0.3, np.nan, X[150:])
+    >>> bool(np.isfinite(imputer.transform(X_new)).all())
+    True
+    """
+
+    _require_observed_columns = False
+    _min_samples = 2
+
+    def __init__(
+        self,
+        missing_values=np.nan,
+        *,
+        gamma=None,
+        tau=1.0,
+        center=True,
+        eigensolver="auto",
+        rho=None,
+        loss="squared",
+        delta=None,
+        n_neighbors=5,
+        starts="mean",
+        weights="uniform",
+        warm_start=False,
+    ):
+        self.missing_values = missing_values
+        self.gamma = gamma
+        self.tau = tau
+        self.center = center
+        self.eigensolver = eigensolver
+        self.rho = rho
+        self.loss = loss
+        self.delta = delta
+        self.n_neighbors = n_neighbors
+        self.starts = starts
+        self.weights = weights
+        self.warm_start = warm_start
+
+    def _check_params(self):
+        if self.gamma is not None:
+            check_positive(self.gamma, "gamma")
+        check_positive(self.tau, "tau")
+        for name in ("center", "warm_start"):
+            if not isinstance(getattr(self, name), bool | np.bool_):
+                raise ValueError(f"{name} must be True or False; got {getattr(self, name)!r}")
+        check_eigensolver(self.eigensolver)
+        if self.rho is not None:
+            check_positive(self.rho, "rho")
+        if self.loss not in LOSSES:
+            raise ValueError(f"loss must be one of {LOSSES}; got {self.loss!r}")
+        if self.loss == "huber" and self.delta is None:
+            raise ValueError("delta (the Huber threshold, units of X) is required with loss='huber'")
+        if self.delta is not None:
+            check_positive(self.delta, "delta")
+        check_count(self.n_neighbors, "n_neighbors")
+        if self.starts not in ("mean", "each"):
+            raise ValueError(f"starts must be 'mean' or 'each'; got {self.starts!r}")
+        if self.weights not in ("uniform", "distance"):
+            raise ValueError(f"weights must be 'uniform' or 'distance'; got {self.weights!r}")
+
+    def _manifold_key(self) -> tuple:
+        return (self.gamma, self.tau, bool(self.center), self.eigensolver)
+
+    def fit(self, X, y=None):
+        """Learn the manifold from the rows of X (n, n_features) with every entry observed; y is
+        ignored. Returns self."""
+        W, mask = self._validated(X, reset=True)
+        self._check_params()
+        rows = W[mask.all(axis=1)]
+        if rows.shape[0] < 2:
+            raise ValueError(
+                f"X has {rows.shape[0]} fully observed row(s): RobustKernelPCAImputer learns its manifold "
+                "from complete rows and needs at least 2; use KernelRegularizerImputer to learn from "
+                "incomplete rows"
+            )
+        previous = getattr(self, "model_", None)
+        if not (
+            self.warm_start
+            and previous is not None
+            and self._fitted_key == self._manifold_key()
+            and np.array_equal(previous.X_fit_, rows)
+        ):
+            self.model_ = RobustKernelPCA(
+                gamma=self.gamma, tau=self.tau, center=bool(self.center), eigensolver=self.eigensolver
+            ).fit(rows)
+            self._fitted_key = self._manifold_key()
+            self._solutions = None
+        self.gamma_ = float(self.model_.gamma_)
+        self.n_components_ = int(self.model_.n_components_)
+        return self
+
+    def fit_transform(self, X, y=None):
+        """``fit(X).transform(X)``: X (n, n_features) completed against the manifold learnt from
+        its complete rows."""
+        return self.fit(X).transform(X)
+
+    def transform(self, X):
+        """Complete (with finite ``rho``, denoise) the rows of X, shape (m, n_features), against the
+        learnt manifold. Returns X_hat, shape (m, n_features)."""
+        check_is_fitted(self, "model_")
+        self._check_params()
+        W, mask = self._validated(X, reset=False)
+        return self._complete(W, mask)
+
+    def _complete(self, W, mask):
+        kw = {"rho": self.rho, "loss": self.loss, "delta": self.delta}
+        k = int(self.n_neighbors)
+        if self.starts == "mean":
+            return self.model_.complete(W, mask, n_neighbors=k, starts="mean", **kw)
+        memo = getattr(self, "_solutions", None) if self.warm_start else None
+        if not (
+            memo is not None
+            and memo["kw"] == kw
+            and memo["k"] >= k
+            and np.array_equal(memo["W"], W)
+            and np.array_equal(memo["mask"], mask)
+        ):
+            solutions, distance = self.model_.complete_each(W, mask, n_neighbors=k, **kw)
+            memo = {"kw": kw, "k": k, "W": W, "mask": mask, "solutions": solutions, "distance": distance}
+            self._solutions = memo  # kept for a warm transform that follows
+        return average_solutions(memo["solutions"][:, :k], memo["distance"][:, :k], self.weights)
+
+
+class Reconstruction(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
+    """A decomposition as a denoiser: ``transform(X) = estimator.inverse_transform(estimator.transform(X))``.
+
+    The estimator (cloned) is fitted on the training rows; each row is replaced by its
+    reconstruction from the fitted components, e.g. ``Reconstruction(PCA(8))`` or
+    ``Reconstruction(KernelPCA(16, kernel="rbf", fit_inverse_transform=True))``. It needs complete
+    rows: put a ``SimpleImputer`` before it in a ``Pipeline`` to fill missing entries first.
+
+    Parameters
+    ----------
+    estimator : estimator with ``fit``, ``transform`` and ``inverse_transform``
+
+    Attributes
+    ----------
+    estimator_ : the fitted clone
+    n_features_in_ : int
+    """
+
+    def __init__(self, estimator=None):
+        self.estimator = estimator
+
+    def _check_params(self):
+        needed = ("fit", "transform", "inverse_transform")
+        if not all(callable(getattr(self.estimator, name, None)) for name in needed):
+            raise ValueError(
+                "estimator must have fit, transform and inverse_transform (a decomposition such as "
+                f"PCA); got {self.estimator!r}"
+            )
+
+    def fit(self, X, y=None):
+        """Fit the estimator on X, shape (n, n_features). Returns self."""
+        self._check_params()
+        X = validate_data(self, X, dtype=np.float64)
+        self.estimator_ = clone(self.estimator).fit(X)
+        return self
+
+    def transform(self, X):
+        """The reconstruction of X, shape (m, n_features)."""
+        check_is_fitted(self, "estimator_")
+        X = validate_data(self, X, reset=False, dtype=np.float64)
+        return np.asarray(self.estimator_.inverse_transform(self.estimator_.transform(X)), dtype=np.float64)
+
