@@ -7,13 +7,15 @@ training split and a test split, both with i.i.d. N(0, sigma^2) noise added (not
 - ``PCA``: fitted on the noisy training split, test images projected and reconstructed;
 - ``KernelPCA``: scikit-learn's ``KernelPCA(kernel="rbf", fit_inverse_transform=True)`` fitted on the
   noisy training split, as in scikit-learn's own denoising example;
-- ``RobustKernelPCA``: fitted on the noisy training split; each test image denoised by
-  :meth:`~nldr.robust_kpca.RobustKernelPCA.complete` with every pixel observed and a finite rho;
+- ``RobustKernelPCA``: fitted on the noisy training split; each test image denoised with every pixel
+  observed and a finite rho (:class:`nldr.impute.RobustKernelPCAImputer`, the pre-image step of
+  :meth:`~nldr.robust_kpca.RobustKernelPCA.complete`);
 - ``Ours``: the regularizer (:func:`nldr.regularizer.minimize_regularized`), transductive on the noisy
   test images alone (the first ``ours.n_images``; its cost grows as n^2 per evaluation).
 
-Every knob is chosen by hold-out CV on noisy data only, by held-out pixels (the J-invariance argument
-of Batson and Royer, "Noise2Self", 2019): the pixels are split at random into ``cv.n_parts`` groups J;
+Every knob is chosen by hold-out CV on noisy data only (:class:`nldr.model_selection.HoldoutSearch`),
+by held-out pixels (the J-invariance argument of Batson and Royer, "Noise2Self", 2019): the pixels
+are split at random into ``cv.n_parts`` groups J;
 a denoiser predicts the pixels of J from the other pixels only, and is scored by the squared
 difference to the noisy values of J. As the noise on J is independent of that prediction, the expected
 score is the prediction's squared error against the clean pixels plus sigma^2 per pixel, a constant, so
