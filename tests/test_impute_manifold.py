@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from sklearn.decomposition import PCA, KernelPCA
 from sklearn.utils.estimator_checks import parametrize_with_checks
+from test_impute import surface
 
 from nldr.impute import Reconstruction, RobustKernelPCAImputer
 from nldr.model_selection import HoldoutSearch
@@ -17,17 +18,10 @@ def test_scikit_learn_estimator_checks(estimator, check):
     check(estimator)
 
 
-def surface(n, rng, noise=0.01):
-    """Rows on a curved two-dimensional surface in R^6, slightly noisy."""
-    t, s = rng.uniform(0, 1, n), rng.uniform(0, 1, n)
-    X = np.c_[t, t**2, np.sin(3 * t), s, s * t, np.cos(2 * s)]
-    return X + noise * rng.standard_normal(X.shape)
-
-
 @pytest.fixture
 def data():
     rng = np.random.default_rng(7)
-    X_train, X_new = surface(150, rng), surface(30, rng)
+    X_train, X_new = surface(150, rng, noise=0.01), surface(30, rng, noise=0.01)
     mask = rng.random(X_new.shape) > 0.25
     mask[:, 0] |= ~mask.any(axis=1)
     return X_train, X_new, mask
