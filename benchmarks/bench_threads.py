@@ -1,7 +1,8 @@
 """BLAS threads: the library's default against one and two threads, idle and busy (PERFORMANCE.md#threads).
 
-One completion per case: ``KernelRegularizerImputer()`` (its defaults: standardised columns, the median
-width, the exact path up to 150 rows and the Nystroem warm start above) on the first n oil-flow rows
+One completion per case: ``KernelRegularizerImputer(random_state=0)`` (defaults otherwise: standardised
+columns, the median width, the exact path up to 150 rows and the Nystroem warm start above; a fixed
+``random_state``, so that every fit is the same computation) on the first n oil-flow rows
 (train, then validation, then test split) with 25 % of the entries missing (mask seed 2016). At
 1000 rows the penalty schedule is cut to two stages (rho 1 and 10) of at most 40 inner iterations,
 at 3000 rows to one stage (rho 1) of at most 3, to keep the benchmark cheap on a shared machine; the
@@ -18,9 +19,11 @@ Machine states: ``idle`` (nothing started by this script; the machine may be sha
 as idle as the others leave it: the load average is printed beside each row) and ``busy`` (one
 competing single-threaded numpy matmul loop, started here and stopped by its pid after each case).
 
-Each (state, n, threads) is timed ``--repeats`` times, interleaved (1, 2, default, 1, 2, default, ...)
-so that a drift in the machine's load hits every setting alike; the table gives the median wall
-seconds, their spread (min-max) and the median CPU seconds of the fit alone.
+Each (state, n, threads) is timed ``--repeats`` times in one fresh process (the first fit included:
+imports and data loading are outside the timings); a process still running after ``--cap`` wall
+seconds is stopped and its unfinished fits are shown as ``inf`` (slower than the cap). The table
+gives the median wall seconds, their spread (min-max), the median CPU seconds of the fit alone, and
+the load average before and after.
 
     .venv/bin/python benchmarks/bench_threads.py [--sizes 100 1000 3000] [--repeats 3]
 
@@ -31,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import statistics
 import subprocess
@@ -43,7 +47,7 @@ SETTINGS = ("1", "2", "default")
 CHILD = r"""
 import json, sys, time
 import numpy as np
-setting, n = sys.argv[1], int(sys.argv[2])
+setting, n, repeats = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 from threadpoolctl import threadpool_info, threadpool_limits
 from nldr.datasets import load_oil_rows
 from nldr.experiments.table2 import random_mask
@@ -55,10 +59,10 @@ mask = random_mask(X.shape, 0.25, 2016)
 W = np.where(mask, X, np.nan)
 kw = {}
 if n >= 1000:  # two penalty stages, few inner iterations: the full problem's matrices, fewer steps
-    kw = {"schedule": {"rho0": 1.0, "rho_max": 10.0}, "options": {"max_inner": 40}}
-if n >= 3000:  # one stage of 3 inner iterations (each solve step of the exact stage: a 3000 x 3000 eigh)
-    kw = {"schedule": {"rho0": 1.0, "rho_max": 1.0}, "options": {"max_inner": 3}}
-model = KernelRegularizerImputer(**kw)
+    kw = {"schedule": {"rho0": 1.0, "rho_max": 10.0}, "options": {"max_inner": 15}}
+if n >= 3000:  # one stage of 1 inner iteration (each evaluation in the exact stage: a 3000 x 3000 eigh)
+    kw = {"schedule": {"rho0": 1.0, "rho_max": 1.0}, "options": {"max_inner": 1}}
+model = KernelRegularizerImputer(random_state=0, **kw)  # the same landmarks in every fit
 seen = set()
 if setting == "default":
     chosen = _threads.blas_threads(n)
@@ -66,12 +70,14 @@ if setting == "default":
 else:
     chosen = int(setting)
     limit = threadpool_limits(chosen, user_api="blas")
-wall0, cpu0 = time.perf_counter(), time.process_time()
-X_hat = model.fit_transform(W)
-wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
-blas = sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
-sse = float(np.sum((X_hat - X) ** 2))
-print(json.dumps({"wall": wall, "cpu": cpu, "sse": sse, "chosen": chosen, "libs": len(blas)}))
+for _ in range(repeats):
+    wall0, cpu0 = time.perf_counter(), time.process_time()
+    X_hat = model.fit_transform(W)
+    wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
+    sse = float(np.sum((X_hat - X) ** 2))
+    if setting == "default":
+        chosen = _threads.blas_threads(n)
+    print(json.dumps({"wall": wall, "cpu": cpu, "sse": sse, "chosen": chosen}), flush=True)
 """
 
 COMPETITOR = r"""
@@ -84,15 +90,21 @@ while True:
 """
 
 
-def run_case(setting: str, n: int) -> dict:
+def run_case(setting: str, n: int, repeats: int, cap: float) -> list[dict]:
+    """``repeats`` fits in one fresh process; a process still running after ``cap`` wall seconds is
+    stopped and its unfinished fits count as ``> cap`` (wall: inf)."""
     drop = ("OPENBLAS_", "OMP_", "MKL_", "NLDR_AUTO")  # OpenBLAS starts at its default: a thread per core
     env = {k: v for k, v in os.environ.items() if not k.startswith(drop)}
     if setting != "default":
         env["NLDR_AUTO_THREADS"] = "0"
-    out = subprocess.run(
-        [sys.executable, "-c", CHILD, setting, str(n)], capture_output=True, text=True, env=env, check=True
-    )
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    cmd = [sys.executable, "-c", CHILD, setting, str(n), str(repeats)]
+    try:
+        out = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True, timeout=cap).stdout
+    except subprocess.TimeoutExpired as exc:
+        out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
+    rows = [json.loads(line) for line in out.splitlines() if line.startswith("{")]
+    censored = {"wall": math.inf, "cpu": math.nan, "sse": math.nan, "chosen": -1}
+    return rows + [censored] * (repeats - len(rows))
 
 
 def start_competitor() -> subprocess.Popen:
@@ -113,6 +125,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 3000])
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--cap", type=float, default=150.0, help="wall seconds per setting's process")
     parser.add_argument("--states", nargs="+", default=["idle", "busy"], choices=["idle", "busy"])
     parser.add_argument("--out", type=Path, default=None, help="also write the raw timings (JSON lines)")
     args = parser.parse_args()
@@ -126,22 +139,19 @@ def main() -> None:
             try:
                 if competitor is not None:
                     time.sleep(1.0)  # let it reach its loop
-                times = {s: [] for s in SETTINGS}
-                load = []
-                for _ in range(args.repeats):
-                    for setting in SETTINGS:
-                        load.append(os.getloadavg()[0])
-                        row = run_case(setting, n)
-                        times[setting].append(row)
-                        raw.append({"state": state, "n": n, "setting": setting, **row})
+                times, load = {}, [os.getloadavg()[0]]
+                for setting in SETTINGS:
+                    times[setting] = run_case(setting, n, args.repeats, args.cap)
+                    load.append(os.getloadavg()[0])
+                    raw += [{"state": state, "n": n, "setting": setting, **r} for r in times[setting]]
             finally:
                 if competitor is not None:
                     stop(competitor)
             for setting in SETTINGS:
                 walls = [r["wall"] for r in times[setting]]
                 cpus = [r["cpu"] for r in times[setting]]
-                chosen = sorted({r["chosen"] for r in times[setting]})
-                sse = sorted({round(r["sse"], 4) for r in times[setting]})
+                chosen = sorted({r["chosen"] for r in times[setting] if r["chosen"] > 0})
+                sse = sorted({round(r["sse"], 4) for r in times[setting] if r["sse"] == r["sse"]})
                 print(
                     f"| {state} | {n} | {setting} | {','.join(map(str, chosen))} | "
                     f"{statistics.median(walls):.2f} ({min(walls):.2f}-{max(walls):.2f}) | "
