@@ -4,8 +4,8 @@ One completion per case: ``KernelRegularizerImputer(random_state=0)`` (defaults 
 columns, the median width, the exact path up to 150 rows and the Nystroem warm start above; a fixed
 ``random_state``, so that every fit is the same computation) on the first n oil-flow rows
 (train, then validation, then test split) with 25 % of the entries missing (mask seed 2016). At
-1000 rows the penalty schedule is cut to two stages (rho 1 and 10) of at most 40 inner iterations,
-at 3000 rows to one stage (rho 1) of at most 3, to keep the benchmark cheap on a shared machine; the
+1000 rows the penalty schedule is cut to two stages (rho 1 and 10) of at most 15 inner iterations,
+at 3000 rows to one stage (rho 1) of one, to keep the benchmark cheap on a shared machine; the
 matrices, hence what a thread buys per operation, are the full problem's.
 
 Thread settings, each in a fresh process so that nothing carries over:
@@ -27,7 +27,8 @@ the load average before and after.
 
     .venv/bin/python benchmarks/bench_threads.py [--sizes 100 1000 3000] [--repeats 3]
 
-Costs about 7 CPU minutes on the sizes above, and the competitor's core while the busy cases run.
+Costs about 3 CPU minutes of fits on the sizes above (more where two threads spin), and the
+competitor's core while the busy cases run.
 """
 
 from __future__ import annotations
