@@ -37,7 +37,6 @@ data_dir = ""  # folder holding the data; "": the config's data.dir
 
 # %%
 
-import pandas as pd
 from IPython.display import Markdown, display
 
 from nldr import tables
@@ -53,7 +52,7 @@ root, results, settings, table_path, run_paths = nb.root, nb.results, nb.setting
 # solved; `ms_per_row`: CPU milliseconds per test row of the completion step (fit excluded).
 
 # %%
-result = pd.read_csv(table_path)
+result = nb.read_table()  # the table with its timings (ms_per_row) after it
 display(
     Markdown(
         tables.to_markdown(result, digits=3, metrics=["sse", "sse_subset", "ms_per_row"], transpose=True)
@@ -91,5 +90,5 @@ for setting, group in wide.groupby(level=0):
 # ## What CV chose, per mask
 
 # %%
-runs_frame = pd.concat([pd.read_csv(p) for p in run_paths], ignore_index=True)
+runs_frame = nb.read_runs()  # the run files with their timings (ms_per_row) beside them
 display(runs_frame[["p", "seed", "method", "sse", "sse_subset", "ms_per_row", "params"]])

@@ -69,7 +69,7 @@ display(Markdown(tables.to_markdown(result, digits=2, metrics=["sse"], transpose
 # (the target: at most 0.7 against LS, below 1 against RPCA, at 10 % corruption).
 
 # %%
-all_runs = pd.concat([pd.read_csv(p) for p in run_paths], ignore_index=True)
+all_runs = nb.read_runs()  # the run files with their timings (seconds) beside them
 wide = all_runs.pivot_table(index=["p", "corrupt", "seed"], columns="method", values="sse")
 ratios = pd.DataFrame(
     {

@@ -65,7 +65,7 @@ display(Markdown(tables.to_markdown(result, digits=4, metrics=["e3d"], transpose
 # against TNH (robust)).
 
 # %%
-all_runs = pd.concat([pd.read_csv(p) for p in run_paths], ignore_index=True)
+all_runs = nb.read_runs()  # the run files with their timings (seconds) beside them
 wide = all_runs.pivot_table(index=["displaced", "sequence", "seed"], columns="method", values="e3d")
 ratios = pd.DataFrame(
     {

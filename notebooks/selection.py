@@ -65,7 +65,7 @@ display(Markdown(tables.to_markdown(result, digits=3, metrics=["sse"], transpose
 # `solves` is the selection's time divided by one solve at the paper's values on the same mask.
 
 # %%
-all_runs = pd.concat([pd.read_csv(p) for p in run_paths], ignore_index=True)
+all_runs = nb.read_runs()  # the run files with their timings (seconds) beside them
 cv = all_runs[all_runs["method"] == "Ours (CV)"]
 summary = cv.groupby("p").agg(
     tau=("tau", "median"), gamma=("gamma", "median"), solves=("solves", "mean"), seconds=("seconds", "mean")

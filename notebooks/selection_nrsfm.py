@@ -109,7 +109,7 @@ pd.concat(checks, axis=1).round(3) if checks else "no pair to compare in this ru
 # `solves`).
 
 # %%
-all_runs = pd.concat([pd.read_csv(p) for p in run_paths], ignore_index=True)
+all_runs = nb.read_runs()  # the run files with their timings (seconds) beside them
 picked = [all_runs[c].notna() for c in ("solves", "width_multiple") if c in all_runs]
 chosen = all_runs[np.logical_or.reduce(picked)] if picked else all_runs.iloc[:0]
 columns = [

@@ -89,7 +89,7 @@ display(Markdown(tables.to_markdown(result, digits=3, metrics=["sse"], transpose
 # Solver health across all masks: fraction of runs that converged and median seconds per solve.
 
 # %%
-all_runs = pd.concat([pd.read_csv(r) for r in run_paths], ignore_index=True)
+all_runs = nb.read_runs()  # the run files with their timings (seconds) beside them
 all_runs.groupby(["method", "p"], sort=False).agg(
     converged=("converged", "mean"), median_seconds=("seconds", "median"), max_seconds=("seconds", "max")
 ).unstack("p").round(3)

@@ -69,7 +69,7 @@ display(Markdown(tables.to_markdown(result, metrics=["e3d"])))
 # Spread of the missing-data runs (one row per mask) and time per job:
 
 # %%
-all_runs = pd.concat([pd.read_csv(p) for p in run_paths], ignore_index=True)
+all_runs = nb.read_runs()  # the run files with their timings (seconds) beside them
 all_runs.pivot_table(
     index=["sequence", "missing_fraction", "seed"], columns="method", values="e3d", sort=False
 ).round(4)

@@ -66,7 +66,7 @@ display(Markdown(tables.to_markdown(result, metrics=["e3d"])))
 # factorisation, and after each method's alternation.
 
 # %%
-all_runs = pd.concat([pd.read_csv(p) for p in run_paths], ignore_index=True)
+all_runs = nb.read_runs()  # the run files with their timings (seconds) beside them
 cams = all_runs.pivot_table(
     index=["sequence", "missing_fraction", "seed"], columns="method", values="camera_error", sort=False
 )

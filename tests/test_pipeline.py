@@ -10,9 +10,10 @@ import pandas as pd
 import pytest
 import yaml
 from protocol import QUICK, REPO, full_config, quick_config, quick_results, run_snakemake
-from reproducible import difference
+from reproducible import compare_runs, output_files
 
 from nldr.experiments import EXPERIMENTS
+from nldr.experiments.base import is_measured
 from nldr.experiments.table2 import PEER_ROWS
 from nldr.tables import TABLE_COLUMNS
 
@@ -129,33 +130,37 @@ def test_table3_target_has_tnh_and_both_widths_beside_the_paper(quick_run):
 
 @pytest.mark.pipeline
 def test_a_second_clean_run_on_one_core_gives_byte_identical_outputs(quick_run, tmp_path):
-    """Every random draw is seeded and BLAS is pinned per job, so the tables, run files and figures (PNG,
-    PDF and SVG) may not depend on the run or on how many jobs ran side by side (the first run used 2
-    cores, this one uses 1). Run files may differ only in the cells that time their job."""
-    targets = [f"{R}/tables/{name}.csv" for name in ("table1", "table2", "table3", "table4")]
-    targets += [f"{R}/figures/{name}.{ext}" for name in ("fig3", "fig1") for ext in ("png", "pdf", "svg")]
-    proc = run_snakemake(tmp_path, *targets, "-c", "1", "--configfile", str(QUICK))
+    """Every random draw is seeded, BLAS is pinned per job and the times a job measures are written
+    apart (timings/), so every file under tables/, runs/ and figures/ (CSV, Markdown, HTML, LaTeX,
+    NPZ, PNG, PDF, SVG) may not depend on the run or on how many jobs ran side by side (the first run
+    used 2 cores, this one uses 1): the second run builds every such file of the first, byte for byte."""
+    first = output_files(quick_run, R)
+    built = [str(rel) for rel in first if rel.parts[len(Path(R).parts)] in ("tables", "figures")]
+    assert {Path(p).parts[len(Path(R).parts)] for p in built} == {"tables", "figures"}
+    # the timings really are apart: the first run wrote them, and no run or table file holds a time
+    assert list((quick_run / R / "timings").rglob("*.csv"))
+    for path in first.values():
+        if path.suffix == ".csv":
+            header = path.read_text().splitlines()[0].split(",")
+            assert not [c for c in header if is_measured(c)], path
+            if "tables" in path.parts:
+                assert not pd.read_csv(path)["metric"].map(is_measured).any(), path
+    proc = run_snakemake(tmp_path, *built, "-c", "1", "--configfile", str(QUICK))
     assert proc.returncode == 0, proc.stderr[-4000:]
-    tables = sorted((quick_run / R / "tables").glob("table*.*"))
-    assert len(tables) == 16  # four tables, each as csv, md, html and tex
-    figures = sorted((quick_run / R / "figures").glob("fig*.*"))
-    assert {f.name for f in figures} == {f"{n}.{e}" for n in ("fig3", "fig1") for e in ("png", "pdf", "svg")}
-    runs = sorted(p for p in (quick_run / R / "runs").rglob("*") if p.is_file())
-    second_runs = sorted(p for p in (tmp_path / R / "runs").rglob("*") if p.is_file())
-    assert [p.relative_to(quick_run) for p in runs] == [p.relative_to(tmp_path) for p in second_runs]
-    for first in [*tables, *figures, *runs]:
-        second = tmp_path / first.relative_to(quick_run)
-        if (why := difference(first, second)) is not None:
-            # name the BLAS kernels and CPU features each run's jobs used (see _pipeline.compute_fingerprint)
-            seen = {
-                f"{root.name}/{log.relative_to(root)}": line.split("compute:", 1)[1].strip()
-                for root in (quick_run, tmp_path)
-                for log in sorted((root / R / "logs").rglob("*.log"))
-                for line in log.read_text().splitlines()
-                if "compute:" in line
-            }
-            rel = first.relative_to(quick_run)
-            pytest.fail(f"{rel} differs between two clean runs: {why}; compute per job: {seen}")
+    n_files, problems = compare_runs(quick_run, tmp_path, R)
+    assert n_files == len(first)
+    if problems:
+        # name the BLAS kernels and CPU features each run's jobs used (see _pipeline.compute_fingerprint)
+        seen = {
+            f"{root.name}/{log.relative_to(root)}": line.split("compute:", 1)[1].strip()
+            for root in (quick_run, tmp_path)
+            for log in sorted((root / R / "logs").rglob("*.log"))
+            for line in log.read_text().splitlines()
+            if "compute:" in line
+        }
+        pytest.fail(
+            f"{len(problems)} outputs differ between two clean runs: {problems}; compute per job: {seen}"
+        )
 
 
 @pytest.mark.pipeline
@@ -328,7 +333,8 @@ def test_selection_full_target_builds_beyond_make_reproduce(quick_run):
     for _, job in runs.groupby(["p", "seed"]):
         by = job.set_index("method")
         assert by.loc["Ours (oracle grid point)", "sse"] <= by.loc["Ours (CV)", "sse"]
-    assert (runs["cpu_seconds"] > 0).all()
+    timings = pd.concat(pd.read_csv(p) for p in (quick_run / R / "timings/selection_full").glob("*.csv"))
+    assert (timings["cpu_seconds"] > 0).all() and "cpu_seconds" not in runs
     makefile = (REPO / "Makefile").read_text()
     scale = next(line for line in makefile.splitlines() if line.startswith("\t") and "table3_full" in line)
     assert "selection_full" in scale  # in `make scale`, not in the default target

@@ -7,7 +7,7 @@ suite never collects it). Three checks, each failing with what differed:
    check that never sees the jobs end would otherwise wait forever) while a local ``-c 1`` run of the
    same tables runs beside it;
 2. every file under ``<results>/tables`` and ``<results>/runs`` is byte-identical between the two
-   (run files: except the cells that time the job, tests/reproducible.py);
+   (tests/reproducible.py; the jobs' times are apart, under ``<results>/timings``);
 3. every ``run_job`` job reached SLURM (``scontrol show job``, which keeps finished jobs for MinJobAge
    seconds) with its rule's threads, memory and runtime, as nldr.experiments declares them, and
    completed there; no other job was submitted (the gathering rules run on the submitting host).
@@ -27,7 +27,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "tests"))
 from protocol import QUICK, SNAKEMAKE, quick_config  # noqa: E402
-from reproducible import MEASURED, difference, measured_only  # noqa: E402
+from reproducible import compare_runs  # noqa: E402
 
 from nldr.experiments import EXPERIMENTS  # noqa: E402
 
@@ -58,26 +58,13 @@ def tail(path: Path, n: int = 40) -> str:
     return "\n".join(path.read_text(errors="replace").splitlines()[-n:])
 
 
-def compare(local: Path, cluster: Path, results: str) -> tuple[int, list[str]]:
-    """Every file under tables/ and runs/ of both runs (tests/reproducible.py): how many were
-    compared, and which run files differ in their measured time columns only."""
-    problems, count, timed = [], 0, []
-    for sub in ("tables", "runs"):
-        a = {p.relative_to(local): p for p in (local / results / sub).rglob("*") if p.is_file()}
-        b = {p.relative_to(cluster): p for p in (cluster / results / sub).rglob("*") if p.is_file()}
-        if not a:
-            problems.append(f"the local run wrote nothing under {results}/{sub}")
-        for rel in sorted(a.keys() ^ b.keys()):
-            problems.append(f"{rel} only in the {'local' if rel in a else 'SLURM'} run")
-        for rel in sorted(a.keys() & b.keys()):
-            count += 1
-            if (why := difference(a[rel], b[rel])) is not None:
-                problems.append(f"{rel} differs between the local and the SLURM run: {why}")
-            elif measured_only(a[rel], b[rel]):
-                timed.append(str(rel))
+def compare(local: Path, cluster: Path, results: str) -> int:
+    """Every file under tables/ and runs/ of both runs, byte for byte (tests/reproducible.py): how
+    many were compared; exits naming each difference."""
+    count, problems = compare_runs(local, cluster, results, ("tables", "runs"))
     if problems:
-        sys.exit("outputs differ:\n  " + "\n  ".join(problems))
-    return count, timed
+        sys.exit("outputs differ between the local and the SLURM run:\n  " + "\n  ".join(problems))
+    return count
 
 
 def expected_requests() -> dict[str, tuple[int, int, int]]:
@@ -158,11 +145,8 @@ def main() -> None:
     if not match:
         sys.exit(f"no 'SLURM run ID' in {cluster_log}: did the slurm executor run?")
     print(f"local run {t_local:.0f} s, SLURM run {t_slurm:.0f} s (side by side)")
-    n_files, timed = compare(local, cluster, results)
-    print(
-        f"{n_files} files under {results}/tables and {results}/runs: byte-identical, except "
-        f"{len(timed)} run files in their measured time columns {sorted(MEASURED)} only"
-    )
+    n_files = compare(local, cluster, results)
+    print(f"{n_files} files under {results}/tables and {results}/runs: byte-identical")
     n_jobs = check_requests(match.group(1))
     print(f"{n_jobs} SLURM jobs, each with its rule's threads, memory and runtime: OK")
 

@@ -53,9 +53,21 @@ def data_paths(relpaths):
     return [f"{DATA_DIR}/{rel}" for rel in relpaths]
 
 
-def run_files(experiment, ext="csv"):
+def run_files(experiment, ext="csv", folder="runs"):
+    """Each job's file under ``runs/`` (results) or ``timings/`` (what the job measured: times)."""
     e = EXPERIMENTS[experiment] if isinstance(experiment, str) else experiment
-    return [f"{RESULTS}/runs/{e.name}/{job_id}.{ext}" for job_id in JOBS[e.name]]
+    return [f"{RESULTS}/{folder}/{e.name}/{job_id}.{ext}" for job_id in JOBS[e.name]]
+
+
+def timing_files(experiment):
+    """The jobs' timings (CSV) of an experiment, in the order of :func:`run_files`."""
+    return run_files(experiment, "csv", "timings")
+
+
+def timing_table(experiment):
+    """The table's measured rows (times), apart from results/tables so that those repeat bit for bit."""
+    name = experiment if isinstance(experiment, str) else experiment.name
+    return f"{RESULTS}/timings/{name}.csv"
 
 
 TABLE_FORMATS = ("csv", "md", "html", "tex")  # CSV is canonical; HTML is what the HTML report shows
@@ -83,9 +95,10 @@ def notebook_path(experiment, ext="ipynb"):
 
 
 def target_of(experiment):
-    """What `snakemake <name>` builds: the table in every format, the figures in every format, and the
-    executed notebook with its HTML page if the experiment has one."""
+    """What `snakemake <name>` builds: the table in every format with its timings, the figures in every
+    format, and the executed notebook with its HTML page if the experiment has one."""
     files = table_files(experiment) + [f for fig in experiment.figures for f in figure_files(fig)]
+    files.append(timing_table(experiment))
     if experiment.notebook:
         files += [notebook_path(experiment), notebook_path(experiment, "html")]
     return files

@@ -8,6 +8,8 @@ rule run_job:
     output:
         table=f"{RESULTS}/runs/{{experiment}}/{{job}}.csv",
         arrays=f"{RESULTS}/runs/{{experiment}}/{{job}}.npz",
+        timings=f"{RESULTS}/timings/{{experiment}}/{{job}}.csv",
+        timing_arrays=f"{RESULTS}/timings/{{experiment}}/{{job}}.npz",
     params:
         settings=lambda w: experiment_of(w).job_settings(config),
         job=lambda w: dict(job_of(w).params),
@@ -33,7 +35,9 @@ rule run_job:
 rule gather_table:
     input:
         runs=lambda w: run_files(w.experiment),
+        timings=lambda w: timing_files(w.experiment),
         others=lambda w: [f for other in experiment_of(w).gathers_with for f in run_files(other)],
+        other_timings=lambda w: [f for o in experiment_of(w).gathers_with for f in timing_files(o)],
     output:
         csv=f"{RESULTS}/tables/{{experiment}}.csv",
         md=f"{RESULTS}/tables/{{experiment}}.md",
@@ -44,6 +48,7 @@ rule gather_table:
             labels={"table": "{experiment}"},
         ),
         tex=f"{RESULTS}/tables/{{experiment}}.tex",
+        timings=f"{RESULTS}/timings/{{experiment}}.csv",
     params:
         caption=lambda w: experiment_of(w).caption(config),
     wildcard_constraints:
@@ -93,6 +98,8 @@ rule notebook:
         figures=lambda w: [figure_path(f) for f in NOTEBOOKS[w.notebook].figures],
         runs=lambda w: run_files(NOTEBOOKS[w.notebook]),
         arrays=lambda w: run_files(NOTEBOOKS[w.notebook], "npz"),
+        timings=lambda w: timing_files(NOTEBOOKS[w.notebook]),  # beside the runs (notebook.locate)
+        timing_table=lambda w: timing_table(NOTEBOOKS[w.notebook]),
         data=lambda w: data_paths(NOTEBOOKS[w.notebook].data_files(config)),
     output:
         f"{RESULTS}/notebooks/{{notebook}}.ipynb",

@@ -20,9 +20,14 @@ except ImportError:
 
 
 def setup(snakemake) -> logging.Logger:
-    """Send log records to the rule's log file and pin BLAS threads to the rule's ``threads``."""
+    """Send log records to the rule's log file and pin BLAS threads to the rule's ``threads``.
+
+    The library keeps its one-thread rule for small problems but does not replace the rule's threads
+    by the idle cores it sees on larger ones (``NLDR_AUTO_THREADS=small``, nldr._threads): a job's
+    results must not depend on the machine's load."""
     from threadpoolctl import threadpool_limits
 
+    os.environ.setdefault("NLDR_AUTO_THREADS", "small")
     log_file = snakemake.log[0] if len(snakemake.log) else None
     handlers = [logging.StreamHandler(sys.stderr)]
     if log_file:

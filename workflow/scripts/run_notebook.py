@@ -3,7 +3,9 @@
 The notebook's ``parameters`` cell is overridden with the rule's named inputs and with the rule's
 ``parameters`` param (the experiment's settings, the data folder), so the executed copy shows exactly
 the files and settings of this run. Paths stay relative to Snakemake's working directory (the kernel
-runs there, ``workdir="."``), so the executed copy names no absolute path of this machine.
+runs there, ``workdir="."``), so the executed copy names no absolute path of this machine. Its cell
+ids are the cells' positions and it keeps no clock times, so two runs differ only in outputs that
+print what was measured (times).
 """
 
 import os
@@ -19,7 +21,7 @@ log = setup(sm)
 parameters = {
     key: (str(value) if isinstance(value, str) else [str(v) for v in value])
     for key, value in sm.input.items()
-    if key not in ("notebook", "data")
+    if key not in ("notebook", "data", "timings", "timing_table")  # timings: found beside the runs
 }
 parameters.update(workdir=".", results=sm.params.results)
 parameters.update(dict(getattr(sm.params, "parameters", None) or {}))
@@ -40,5 +42,15 @@ with atomic_path(sm.output[0]) as tmp:
     executed.metadata.papermill.update(input_path=sm.input.notebook, output_path=sm.output[0])
     if Path(sm.input.notebook).is_absolute():  # the rules name the notebook under the repository
         executed.metadata.papermill["input_path"] = f"notebooks/{Path(sm.input.notebook).name}"
+    # what differs between two runs without being a result: random cell ids, and the clock times
+    # papermill and nbclient record per cell and for the whole run (outputs that print a time still
+    # differ: the notebooks show what the jobs measured)
+    for i, cell in enumerate(executed.cells):
+        cell.id = f"cell-{i}"
+        cell.metadata.pop("execution", None)
+        for key in ("start_time", "end_time", "duration"):
+            cell.metadata.get("papermill", {}).pop(key, None)
+    for key in ("start_time", "end_time", "duration"):
+        executed.metadata.papermill.pop(key, None)
     nbformat.write(executed, str(tmp))
 log.info("wrote %s", sm.output[0])

@@ -24,13 +24,33 @@ import pandas as pd
 from ..paper import paper_frame
 from ..tables import attach_paper
 
-__all__ = ["Job", "JobOutput", "Experiment", "summary_stats", "SD_DDOF", "float_counts"]
+__all__ = [
+    "Job",
+    "JobOutput",
+    "Experiment",
+    "summary_stats",
+    "SD_DDOF",
+    "float_counts",
+    "is_measured",
+    "split_measured",
+    "join_measured",
+    "split_measured_table",
+]
 
 #: Standard deviations over replicates (noise draws, masks, seeds) in every table are sample
 #: standard deviations (``ddof=1``); with one replicate the spread is NaN, shown as no "± sd".
 SD_DDOF = 1
 #: what a job id may contain (it names files, and the workflow's wildcard accepts exactly this)
 _JOB_ID = re.compile(r"[A-Za-z0-9_.+-]+")
+#: Names that measure the machine, not the method (times, and ratios of times): a run column, an
+#: array or a table metric (without its ``_sd``/``_min``/``_max`` suffix) so named, or ending in one of
+#: :data:`MEASURED_SUFFIXES`, is measured. The pipeline keeps measured values apart from the results
+#: (``results/timings/``), so that results/tables, runs and figures repeat byte for byte.
+MEASURED_NAMES = frozenset({"solves", "ms_per_row"})
+MEASURED_SUFFIXES = ("seconds", "_time")
+#: Columns that identify a run row; the timings file repeats those a job's rows have.
+RUN_KEYS = ("protocol", "sequence", "dataset", "p", "corrupt", "noise_std", "displaced",
+            "missing_fraction", "n_rows", "seed", "method")  # fmt: skip
 
 
 def _types(schema: Mapping) -> set:
@@ -71,6 +91,62 @@ def float_counts(config, schema: Mapping, path: str = "") -> list[str]:
     elif isinstance(config, float) and _count_only(schema, config):
         found.append(f"{path}: {config!r}")
     return found
+
+
+def is_measured(name: str) -> bool:
+    """Whether a run column, array or table metric called ``name`` is a measurement of the machine
+    (a time or a ratio of times, :data:`MEASURED_NAMES`, :data:`MEASURED_SUFFIXES`)."""
+    base = re.sub(r"_(sd|min|max)$", "", str(name))
+    return base in MEASURED_NAMES or base.endswith(MEASURED_SUFFIXES)
+
+
+def split_measured(output: JobOutput) -> tuple[JobOutput, JobOutput]:
+    """A job's output -> (results, timings).
+
+    ``results`` is ``output`` without its measured columns and arrays (:func:`is_measured`); it
+    repeats bit for bit between runs. ``timings`` holds the same rows in the same order, with the
+    row's position (``row``), its identifying columns (:data:`RUN_KEYS`) and its measured columns,
+    and the measured arrays.
+    :func:`join_measured` puts the two back together.
+    """
+    rows = output.rows
+    measured = [c for c in rows.columns if is_measured(c)]
+    keys = [c for c in RUN_KEYS if c in rows.columns]
+    results = JobOutput(
+        rows.drop(columns=measured), {k: v for k, v in output.arrays.items() if not is_measured(k)}
+    )
+    table = rows[keys + measured].reset_index(drop=True)
+    table.insert(0, "row", range(len(rows)))
+    timings = JobOutput(table, {k: v for k, v in output.arrays.items() if is_measured(k)})
+    return results, timings
+
+
+def join_measured(rows: pd.DataFrame, timings: pd.DataFrame) -> pd.DataFrame:
+    """One job's result rows with its timing rows (:func:`split_measured`) beside them.
+
+    Raises
+    ------
+    ValueError
+        If the two do not describe the same rows (row count or identifying columns differ): the
+        timings file is not this run file's.
+    """
+    keys = [c for c in timings.columns if not is_measured(c) and c != "row"]
+    same = len(rows) == len(timings) and all(k in rows for k in keys)
+    if same and keys:
+        same = rows[keys].reset_index(drop=True).equals(timings[keys].reset_index(drop=True))
+    if not same:
+        raise ValueError(
+            f"timings: rows do not match the run file's ({len(timings)} against {len(rows)} rows, keys "
+            f"{keys}); rebuild both with the run_job rule"
+        )
+    measured = timings[[c for c in timings.columns if is_measured(c)]].reset_index(drop=True)
+    return pd.concat([rows.reset_index(drop=True), measured], axis=1)
+
+
+def split_measured_table(table: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """A tidy table -> (rows whose metric is a result, rows whose metric is measured)."""
+    measured = table["metric"].map(is_measured).astype(bool)
+    return table[~measured].reset_index(drop=True), table[measured].reset_index(drop=True)
 
 
 def summary_stats(values, prefix: str, *, extremes: bool = False) -> dict[str, float]:

@@ -18,7 +18,16 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["repo_root", "load_config", "merge_config", "need", "cached", "locate", "Located"]
+__all__ = [
+    "repo_root",
+    "load_config",
+    "merge_config",
+    "need",
+    "cached",
+    "locate",
+    "Located",
+    "timing_path",
+]
 
 _MARKERS = ("Snakefile", "config/config.yaml")
 
@@ -90,6 +99,14 @@ def need(path: str | os.PathLike, target: str) -> Path:
     return path
 
 
+def timing_path(run: str | os.PathLike) -> Path:
+    """The timings file of a run file: ``<results>/runs/<experiment>/<job>.csv`` ->
+    ``<results>/timings/<experiment>/<job>.csv`` (what the job measured: times; the pipeline keeps
+    them apart so that run files repeat byte for byte)."""
+    run = Path(run)
+    return run.parents[2] / "timings" / run.parent.name / run.name
+
+
 @dataclass
 class Located:
     """Where a notebook's inputs are (see :func:`locate`); every path absolute."""
@@ -102,6 +119,32 @@ class Located:
     runs: list  # the per-job CSVs
     arrays: list  # the per-job .npz files (those beside the CSVs unless given)
     data_dir: Path  # the folder holding oil/ and nrsfm/
+    timings: list  # the per-job timings CSVs (times), one per run file, same order
+    timing_table: Path  # the table's measured rows (times): <results>/timings/<experiment>.csv
+
+    def read_runs(self):
+        """Every run file's rows, concatenated, with its timings beside them (columns such as
+        ``seconds``, ``cpu_seconds``; :func:`nldr.experiments.base.join_measured`)."""
+        import pandas as pd
+
+        from .base import join_measured
+
+        return pd.concat(
+            [
+                join_measured(pd.read_csv(r), pd.read_csv(t))
+                for r, t in zip(self.runs, self.timings, strict=True)
+            ],
+            ignore_index=True,
+        )
+
+    def read_table(self):
+        """The table's rows with its measured rows (times) after them, when it has a timings table."""
+        import pandas as pd
+
+        table = pd.read_csv(self.table)
+        if self.timing_table.is_file():
+            table = pd.concat([table, pd.read_csv(self.timing_table)], ignore_index=True)
+        return table
 
 
 def locate(
@@ -120,7 +163,8 @@ def locate(
 
     Run by the pipeline, the parameters name this run's files relative to ``workdir``; run by hand they
     are empty and everything follows from the config: ``<results>/tables/<experiment>.csv``, every CSV
-    in ``<results>/runs/<experiment>/`` and the ``.npz`` beside each. The repository is found by walking
+    in ``<results>/runs/<experiment>/`` and the ``.npz`` beside each; the timings are found beside the
+    runs (:func:`timing_path`). The repository is found by walking
     up to its ``Snakefile`` (:func:`repo_root`), so the notebook runs from any working directory.
     A missing table raises FileNotFoundError naming the target that builds it (:func:`need`).
     """
@@ -131,15 +175,18 @@ def locate(
     base = Path(workdir) if workdir else root
     folder = base / (results or config["results"])
     run_paths = [base / r for r in runs] or sorted((folder / "runs" / experiment).glob("*.csv"))
+    table_path = need(base / (table or folder / "tables" / f"{experiment}.csv"), experiment)
     return Located(
         root=root,
         config=config,
         results=folder,
         settings=dict(settings) if settings else get(experiment).settings(config),
-        table=need(base / (table or folder / "tables" / f"{experiment}.csv"), experiment),
+        table=table_path,
         runs=run_paths,
         arrays=[base / a for a in arrays] or [p.with_suffix(".npz") for p in run_paths],
         data_dir=base / (data_dir or config["data"]["dir"]),
+        timings=[timing_path(p) for p in run_paths],
+        timing_table=table_path.parents[1] / "timings" / f"{experiment}.csv",
     )
 
 

@@ -1,0 +1,168 @@
+"""BLAS threads: the library's default against one and two threads, idle and busy (PERFORMANCE.md#threads).
+
+One completion per case: ``KernelRegularizerImputer(random_state=0)`` (defaults otherwise: standardised
+columns, the median width, the exact path up to 150 rows and the Nystroem warm start above; a fixed
+``random_state``, so that every fit is the same computation) on the first n oil-flow rows
+(train, then validation, then test split) with 25 % of the entries missing (mask seed 2016). At
+1000 rows the penalty schedule is cut to two stages (rho 1 and 10) of at most 15 inner iterations,
+at 3000 rows to one stage (rho 1) of one, to keep the benchmark cheap on a shared machine; the
+matrices, hence what a thread buys per operation, are the full problem's.
+
+Thread settings, each in a fresh process so that nothing carries over:
+
+- ``1``, ``2``: ``NLDR_AUTO_THREADS=0`` (the library leaves BLAS alone) and
+  ``threadpool_limits(k, user_api="blas")`` around the fit (every loaded OpenBLAS: numpy's and scipy's);
+- ``default``: no limit from the caller, no environment variable: the library's own choice
+  (:mod:`nldr._threads`), with OpenBLAS starting at its default (one thread per core).
+
+Machine states: ``idle`` (nothing started by this script; the machine may be shared, so "idle" is only
+as idle as the others leave it: the load average is printed beside each row) and ``busy`` (one
+competing single-threaded numpy matmul loop, started here and stopped by its pid after each case).
+
+Each (state, n, threads) is timed ``--repeats`` times in one fresh process (the first fit included:
+imports and data loading are outside the timings); a process still running after ``--cap`` wall
+seconds is stopped and its unfinished fits are shown as ``inf`` (slower than the cap). The table
+gives the median wall seconds, their spread (min-max), the median CPU seconds of the fit alone, and
+the load average before and after.
+
+    .venv/bin/python benchmarks/bench_threads.py [--sizes 100 1000 3000] [--repeats 3]
+
+Costs about 3 CPU minutes of fits on the sizes above (more where two threads spin), and the
+competitor's core while the busy cases run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+SETTINGS = ("1", "2", "default")
+
+CHILD = r"""
+import json, sys, time
+import numpy as np
+setting, n, repeats = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+from threadpoolctl import threadpool_info, threadpool_limits
+from nldr.datasets import load_oil_rows
+from nldr.experiments.table2 import random_mask
+from nldr.impute import KernelRegularizerImputer
+from nldr import _threads
+
+X = load_oil_rows(n)
+mask = random_mask(X.shape, 0.25, 2016)
+W = np.where(mask, X, np.nan)
+kw = {}
+if n >= 1000:  # two penalty stages, few inner iterations: the full problem's matrices, fewer steps
+    kw = {"schedule": {"rho0": 1.0, "rho_max": 10.0}, "options": {"max_inner": 15}}
+if n >= 3000:  # one stage of 1 inner iteration (each evaluation in the exact stage: a 3000 x 3000 eigh)
+    kw = {"schedule": {"rho0": 1.0, "rho_max": 1.0}, "options": {"max_inner": 1}}
+model = KernelRegularizerImputer(random_state=0, **kw)  # the same landmarks in every fit
+seen = set()
+if setting == "default":
+    chosen = _threads.blas_threads(n)
+    limit = None
+else:
+    chosen = int(setting)
+    limit = threadpool_limits(chosen, user_api="blas")
+for _ in range(repeats):
+    wall0, cpu0 = time.perf_counter(), time.process_time()
+    X_hat = model.fit_transform(W)
+    wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
+    sse = float(np.sum((X_hat - X) ** 2))
+    if setting == "default":
+        chosen = _threads.blas_threads(n)
+    print(json.dumps({"wall": wall, "cpu": cpu, "sse": sse, "chosen": chosen}), flush=True)
+"""
+
+COMPETITOR = r"""
+import os
+os.sched_setaffinity(0, {0})
+import numpy as np
+a = np.random.default_rng(0).random((300, 300))
+while True:
+    a = (a @ a) / 300.0
+"""
+
+
+def run_case(setting: str, n: int, repeats: int, cap: float) -> list[dict]:
+    """``repeats`` fits in one fresh process; a process still running after ``cap`` wall seconds is
+    stopped and its unfinished fits count as ``> cap`` (wall: inf)."""
+    drop = ("OPENBLAS_", "OMP_", "MKL_", "NLDR_AUTO")  # OpenBLAS starts at its default: a thread per core
+    env = {k: v for k, v in os.environ.items() if not k.startswith(drop)}
+    if setting != "default":
+        env["NLDR_AUTO_THREADS"] = "0"
+    cmd = [sys.executable, "-c", CHILD, setting, str(n), str(repeats)]
+    try:
+        out = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True, timeout=cap).stdout
+    except subprocess.TimeoutExpired as exc:
+        out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
+    rows = [json.loads(line) for line in out.splitlines() if line.startswith("{")]
+    censored = {"wall": math.inf, "cpu": math.nan, "sse": math.nan, "chosen": -1}
+    return rows + [censored] * (repeats - len(rows))
+
+
+def start_competitor() -> subprocess.Popen:
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    return subprocess.Popen([sys.executable, "-c", COMPETITOR], env=env)
+
+
+def stop(proc: subprocess.Popen) -> None:
+    proc.terminate()
+    try:
+        proc.wait(timeout=5)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 3000])
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--cap", type=float, default=150.0, help="wall seconds per setting's process")
+    parser.add_argument("--states", nargs="+", default=["idle", "busy"], choices=["idle", "busy"])
+    parser.add_argument("--out", type=Path, default=None, help="also write the raw timings (JSON lines)")
+    args = parser.parse_args()
+    raw = []
+    print(f"{os.cpu_count()} CPUs; load average at start {os.getloadavg()[0]:.1f}")
+    print("| state | rows | threads | chosen | wall s median (min-max) | CPU s median | SSE | load |")
+    print("|---|---|---|---|---|---|---|---|")
+    for state in args.states:
+        for n in args.sizes:
+            competitor = start_competitor() if state == "busy" else None
+            try:
+                if competitor is not None:
+                    time.sleep(1.0)  # let it reach its loop
+                times, load = {}, [os.getloadavg()[0]]
+                for setting in SETTINGS:
+                    times[setting] = run_case(setting, n, args.repeats, args.cap)
+                    load.append(os.getloadavg()[0])
+                    raw += [{"state": state, "n": n, "setting": setting, **r} for r in times[setting]]
+            finally:
+                if competitor is not None:
+                    stop(competitor)
+            for setting in SETTINGS:
+                walls = [r["wall"] for r in times[setting]]
+                cpus = [r["cpu"] for r in times[setting]]
+                chosen = sorted({r["chosen"] for r in times[setting] if r["chosen"] > 0})
+                sse = sorted({round(r["sse"], 4) for r in times[setting] if r["sse"] == r["sse"]})
+                print(
+                    f"| {state} | {n} | {setting} | {','.join(map(str, chosen))} | "
+                    f"{statistics.median(walls):.2f} ({min(walls):.2f}-{max(walls):.2f}) | "
+                    f"{statistics.median(cpus):.2f} | {', '.join(map(str, sse))} | "
+                    f"{min(load):.1f}-{max(load):.1f} |",
+                    flush=True,
+                )
+    if args.out:
+        args.out.write_text("".join(json.dumps(r) + "\n" for r in raw))
+
+
+if __name__ == "__main__":
+    main()
