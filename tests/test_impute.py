@@ -80,7 +80,7 @@ def test_standardised_solve_is_the_solve_on_standardised_columns(rng):
 def test_default_width_is_the_median_rule_in_standardised_units(rng):
     X = surface(30, rng) * 100.0
     W, mask = hide(X, 0.2, rng)
-    est = KernelRegularizerImputer(method="exact").fit(W)
+    est = KernelRegularizerImputer(gamma=None, tau=0.1, method="exact").fit(W)
     S0 = mean_impute((W - est.mean_) / est.scale_, mask)
     d2 = ((S0[:, None, :] - S0[None, :, :]) ** 2).sum(axis=2)[np.triu_indices(30, 1)]
     assert est.gamma_ == pytest.approx(MEDIAN_RULE_MULTIPLE / np.median(d2), rel=1e-12)

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 from sklearn.utils import check_random_state
 
-from .._options import ExactOptions, solver_options
+from .._options import ExactOptions, NystroemOptions, solver_options
 from .._threads import blas_threads_for
 from .._validation import check_count, check_positive
 from ..baselines._masked import mean_fill, observed_column_means
@@ -17,7 +17,20 @@ from ..preimage import Subspace, average_solutions, complete_from_starts, neares
 from ..regularizer import minimize_regularized
 from ._base import MaskedImputerBase
 
-__all__ = ["KernelRegularizerImputer", "AUTO_EXACT_MAX_ROWS", "MEDIAN_RULE_MULTIPLE", "METHODS"]
+__all__ = [
+    "KernelRegularizerImputer",
+    "AUTO_EXACT_MAX_ROWS",
+    "MEDIAN_RULE_MULTIPLE",
+    "METHODS",
+    "TUNE_GAMMA_MULTIPLES",
+    "TUNE_TAUS",
+    "TUNE_FOLDS",
+    "TUNE_HOLDOUT",
+    "TUNE_MIN_ROWS",
+    "TUNE_TRANSFORM",
+    "TUNE_ROW_SHARE",
+    "TUNE_ROW_HIDDEN",
+]
 
 #: solver paths of ``method``: "auto" and minimize_regularized's methods
 METHODS = ("auto", "exact", "nystroem", "nystroem-warm")
@@ -33,6 +46,29 @@ _DEFAULT_SCHEDULE = {"rho0": 1.0, "rho_max": 1e4}
 #: the default width is this multiple of 1 / (median squared distance between rows), standardised units
 #: (docs/REPRODUCTION.md, "The imputer's defaults")
 MEDIAN_RULE_MULTIPLE = 0.25
+#: ``gamma="auto"``: the hold-out chooses among these multiples of 1 / (median squared row distance)
+#: (docs/REPRODUCTION.md, "The imputer's defaults")
+TUNE_GAMMA_MULTIPLES = (0.125, 0.25, 0.5, 1.0)
+#: ``tau="auto"``: the hold-out chooses among these taus (standardised units when ``standardize``)
+TUNE_TAUS = (0.1, 0.3)
+#: the tuning's Monte-Carlo hold-out folds: how many, and the share of observed entries each hides
+TUNE_FOLDS = 2
+TUNE_HOLDOUT = 0.1
+#: below this many rows "auto" is not searched: tau 0.1 and the median rule's width
+TUNE_MIN_ROWS = 20
+#: ``n_neighbors="auto"``, ``starts="auto"``: the row folds choose ``transform``'s (n_neighbors, starts)
+#: among these (the second is the choice when the rows are too few to tune)
+TUNE_TRANSFORM = ((1, "mean"), (5, "mean"), (10, "mean"), (5, "each"))
+#: the row folds hold out this share of the training rows, and hide this least share of their entries
+TUNE_ROW_SHARE = 0.2
+TUNE_ROW_HIDDEN = 0.25
+#: the tuning's fold solves stop at these looser tolerances (they only rank candidates)
+_TUNE_TOLERANCES = {"tol": 1e-7, "gtol": 1e-4}
+#: the tuning's fold solves above AUTO_EXACT_MAX_ROWS rows: the Nystroem kernel of this many landmarks
+_TUNE_LANDMARKS = 100
+#: a fold's tau path stops once its error exceeds this factor times the path's best so far
+_TUNE_STOP_FACTOR = 1.5
+_NYSTROEM_OPTIONS = frozenset(f.name for f in dataclasses.fields(NystroemOptions))
 
 
 def _median_rule_gamma(S: np.ndarray) -> float:
@@ -172,16 +208,16 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self,
         missing_values=np.nan,
         *,
-        gamma=None,
-        tau=0.1,
+        gamma="auto",
+        tau="auto",
         standardize=True,
         center=False,
         method="auto",
         options=None,
         schedule=None,
         verbose=False,
-        n_neighbors=5,
-        starts="mean",
+        n_neighbors="auto",
+        starts="auto",
         weights="uniform",
         random_state=None,
         warm_start=False,
@@ -206,13 +242,16 @@ class KernelRegularizerImputer(MaskedImputerBase):
     def _check_params(self):
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}; got {self.method!r}")
-        if self.starts not in ("mean", "each"):
-            raise ValueError(f"starts must be 'mean' or 'each'; got {self.starts!r}")
+        if self.starts not in ("mean", "each", "auto"):
+            raise ValueError(f"starts must be 'mean', 'each' or 'auto'; got {self.starts!r}")
         if self.weights not in ("uniform", "distance"):
             raise ValueError(f"weights must be 'uniform' or 'distance'; got {self.weights!r}")
-        check_count(self.n_neighbors, "n_neighbors")
-        tau = check_positive(self.tau, "tau")
-        gamma = None if self.gamma is None else check_positive(self.gamma, "gamma")
+        if not _is_auto(self.n_neighbors):
+            check_count(self.n_neighbors, "n_neighbors (an int >= 1 or 'auto')")
+        tau = "auto" if _is_auto(self.tau) else check_positive(self.tau, "tau (a float > 0 or 'auto')")
+        gamma = self.gamma
+        if not (gamma is None or _is_auto(gamma)):
+            gamma = check_positive(gamma, "gamma (a float > 0, None or 'auto')")
         if self.options is not None and not isinstance(self.options, dict):
             raise ValueError(f"options must be a dict of the method's options or None; got {self.options!r}")
         schedule = {} if self.schedule is None else self.schedule
@@ -258,6 +297,109 @@ class KernelRegularizerImputer(MaskedImputerBase):
             schedule.update(rho0=rho_max, rho_max=rho_max)
         return method, {"method": method, "options": options, "verbose": bool(self.verbose), **schedule}
 
+    def _grid(self, gamma, tau, median_rule: float) -> dict:
+        """The tuning's candidates: every "auto" knob over its grid, the others at their one value."""
+        if _is_auto(gamma):
+            gammas = [float(m * median_rule / MEDIAN_RULE_MULTIPLE) for m in TUNE_GAMMA_MULTIPLES]
+        else:
+            gammas = [median_rule if gamma is None else float(gamma)]
+        return {"gamma": gammas, "tau": [float(t) for t in TUNE_TAUS] if _is_auto(tau) else [float(tau)]}
+
+    def _tune(self, W, mask, grid: dict) -> dict:
+        """Choose gamma and tau among ``grid`` by the hold-out search on the observed entries of W.
+
+        :class:`~nldr.model_selection.HoldoutSearch` with :data:`TUNE_FOLDS` Monte-Carlo folds, each
+        hiding :data:`TUNE_HOLDOUT` of the observed entries (seeded by ``random_state``, 0 when None),
+        the candidates of a fold solved as warm-started paths along tau from the smallest up (one
+        cold solve per fold), looser tolerances, and the Nystroem kernel above
+        :data:`AUTO_EXACT_MAX_ROWS` rows; the smallest mean squared hold-out error wins. Returns the
+        chosen ``{"gamma", "tau"}`` and sets ``cv_results_``."""
+        from ..model_selection.search import HoldoutSearch  # the search's folds import the imputers
+
+        seed = self._tune_seed()
+        base = self.get_params()
+        base.update(gamma=grid["gamma"][0], tau=grid["tau"][0], warm_start=False, verbose=False)
+        base.update(n_neighbors=TUNE_TRANSFORM[1][0], starts="mean")  # transform is not scored here
+        estimator = type(self)(**base)
+        fold_params = self._fold_solver(W.shape[0])
+        search = HoldoutSearch(
+            estimator,
+            grid,
+            n_folds=TUNE_FOLDS,
+            holdout=TUNE_HOLDOUT,
+            random_state=seed,
+            path="tau",
+            stop_factor=_TUNE_STOP_FACTOR,
+            fold_params=fold_params,
+            refit=False,
+            verbose=bool(self.verbose),
+        )
+        search.fit(np.where(mask, W, np.nan))
+        self.cv_results_ = search.cv_results_
+        return dict(search.best_params_)
+
+    def _transform_candidates(self) -> list[tuple[int, str]]:
+        """The (n_neighbors, starts) pairs the row folds compare: the "auto" ones over their grid."""
+        pairs = [c for c in TUNE_TRANSFORM if _is_auto(self.n_neighbors) or c[0] == self.n_neighbors]
+        pairs = [c for c in pairs if self.starts == "auto" or c[1] == self.starts]
+        if not pairs:  # a fixed n_neighbors or starts outside the grid
+            k = TUNE_TRANSFORM[1][0] if _is_auto(self.n_neighbors) else int(self.n_neighbors)
+            pairs = [(k, s) for s in ("mean", "each") if self.starts in ("auto", s)]
+        return pairs
+
+    def _tune_transform(self, W, mask, gamma: float, tau: float) -> tuple[int, str]:
+        """Choose ``transform``'s (n_neighbors, starts) by :data:`TUNE_FOLDS` row folds of the training rows.
+
+        Each fold fits the manifold (at ``gamma``, ``tau``, the tuning's fold solver) on the other rows,
+        hides a share (the training matrix's missing share, at least :data:`TUNE_ROW_HIDDEN`) of the
+        observed entries of :data:`TUNE_ROW_SHARE` of the rows, completes them with every candidate, and
+        scores the mean squared error on the hidden entries (data units); the smallest mean wins. Sets
+        ``transform_results_`` (candidate -> mean error)."""
+        candidates = self._transform_candidates()
+        if len(candidates) == 1:
+            return candidates[0]
+        n = W.shape[0]
+        rng = np.random.default_rng(self._tune_seed())
+        share = max(TUNE_ROW_HIDDEN, 1.0 - mask.mean())
+        base = self.get_params()
+        base.update(gamma=gamma, tau=tau, warm_start=False, verbose=False, **self._fold_solver(n))
+        base.update(n_neighbors=TUNE_TRANSFORM[1][0], starts="mean")
+        errors = np.zeros(len(candidates))
+        for _ in range(TUNE_FOLDS):
+            held = np.zeros(n, dtype=bool)
+            held[rng.choice(n, max(1, int(round(TUNE_ROW_SHARE * n))), replace=False)] = True
+            observed = mask[held]
+            hidden = observed & (rng.random(observed.shape) < share)
+            for i in np.flatnonzero(observed.any(axis=1) & ~(observed & ~hidden).any(axis=1)):
+                hidden[i, rng.choice(np.flatnonzero(observed[i]))] = False  # each row keeps an entry
+            if not hidden.any():
+                continue
+            fold = type(self)(**base).fit(np.where(mask[~held], W[~held], np.nan))
+            if fold.n_components_ == 0:
+                return candidates[0] if (TUNE_TRANSFORM[1] not in candidates) else TUNE_TRANSFORM[1]
+            seen = observed & ~hidden
+            for c, (k, starts) in enumerate(candidates):
+                fold.n_neighbors_, fold.starts_ = k, starts
+                X_hat = fold._complete(np.where(seen, W[held], 0.0), seen)
+                errors[c] += np.mean((X_hat - W[held])[hidden] ** 2) / TUNE_FOLDS
+        self.transform_results_ = {candidates[c]: float(errors[c]) for c in range(len(candidates))}
+        return candidates[int(np.argmin(errors))]
+
+    def _tune_seed(self) -> int:
+        if self.random_state is None:
+            return 0
+        return int(check_random_state(self.random_state).randint(np.iinfo(np.int32).max))
+
+    def _fold_solver(self, n: int) -> dict:
+        """The tuning's fold solves: the exact kernel up to AUTO_EXACT_MAX_ROWS rows, the Nystroem kernel
+        above, at looser tolerances (they only rank candidates)."""
+        if n <= AUTO_EXACT_MAX_ROWS:
+            options = {k: v for k, v in (self.options or {}).items() if k in _EXACT_OPTIONS}
+            return {"method": "exact", "options": {**options, **_TUNE_TOLERANCES}}
+        options = {k: v for k, v in (self.options or {}).items() if k in _NYSTROEM_OPTIONS}
+        options = {"landmarks": _TUNE_LANDMARKS, "landmark_seed": self._tune_seed(), **options}
+        return {"method": "nystroem", "options": {**options, **_TUNE_TOLERANCES}}
+
     def _solve(self, W, mask):
         gamma, tau = self._check_params()
         self.mean_, self.scale_ = self._standardisation(W, mask)
@@ -267,8 +409,24 @@ class KernelRegularizerImputer(MaskedImputerBase):
         warm = previous is not None and previous.shape == W.shape
         if warm:  # the previous estimate, in this fit's (standardised) units
             S0 = previous if not self.standardize else (previous - self.mean_) / self.scale_
-        self.gamma_ = _median_rule_gamma(mean_fill(Z, mask)) if gamma is None else gamma
-        self.tau_ = tau
+        median_rule = _median_rule_gamma(mean_fill(Z, mask)) if gamma is None or _is_auto(gamma) else None
+        grid = self._grid(gamma, tau, median_rule)
+        tuned = (_is_auto(gamma) or _is_auto(tau)) and W.shape[0] >= TUNE_MIN_ROWS
+        if tuned:
+            chosen = self._tune(W, mask, grid)
+        else:
+            self.__dict__.pop("cv_results_", None)
+            chosen = {
+                "gamma": median_rule if _is_auto(gamma) else grid["gamma"][0],
+                "tau": 0.1 if _is_auto(tau) else grid["tau"][0],
+            }
+        self.gamma_, self.tau_ = float(chosen["gamma"]), float(chosen["tau"])
+        self.__dict__.pop("transform_results_", None)
+        pairs = self._transform_candidates()
+        if len(pairs) > 1 and W.shape[0] >= TUNE_MIN_ROWS:
+            pairs = [self._tune_transform(W, mask, self.gamma_, self.tau_)]
+        self.n_neighbors_, self.starts_ = int(pairs[0][0]), str(pairs[0][1])
+        tau = self.tau_
         self.method_, kwargs = self._solver_arguments(W.shape[0], warm)
         result = minimize_regularized(
             MaskedLeastSquares(Z, mask), S0, gamma=self.gamma_, tau=tau, center=bool(self.center), **kwargs
@@ -301,13 +459,18 @@ class KernelRegularizerImputer(MaskedImputerBase):
             )
         Z = np.where(mask, (W - self.mean_) / self.scale_, 0.0)
         S = self.manifold_rows_
-        nearest, distance = nearest_rows(S, Z, mask, self.n_neighbors)
+        n_neighbors, starts = self.n_neighbors_, self.starts_
+        nearest, distance = nearest_rows(S, Z, mask, min(n_neighbors, S.shape[0]))
         rows = S[nearest]
         rows[~mask.any(axis=1)] = S.mean(axis=0)
-        if self.starts == "mean":
+        if starts == "mean":
             rows = rows.mean(axis=1, keepdims=True)
         X0 = np.where(mask[:, None, :], Z[:, None, :], rows)
         with blas_threads_for(S.shape[0]):
             X_hat = complete_from_starts(self._subspace(), Z, mask, X0)
-        X_hat = X_hat[:, 0] if self.starts == "mean" else average_solutions(X_hat, distance, self.weights)
+        X_hat = X_hat[:, 0] if starts == "mean" else average_solutions(X_hat, distance, self.weights)
         return np.where(mask, W, X_hat * self.scale_ + self.mean_)
+
+
+def _is_auto(value) -> bool:
+    return isinstance(value, str) and value == "auto"
