@@ -9,6 +9,9 @@ machine may be shared with other jobs (the figures are then upper bounds of an i
   difference.
 - ``large``: the untuned fit (``gamma=None, tau=0.1``: the median rule) on the first ``--large`` real
   oil-flow rows of the three splits (:func:`nldr.datasets.load_oil_rows`; 3000 is every row).
+- ``path``: the solver paths of ``method="auto"`` on the first n oil rows (``--sizes``), Table 2's
+  masks 2016 + k (``--masks``) at each p: ``method="exact"`` against ``"nystroem-warm"`` (100
+  landmarks, seed 0), untuned (the median rule, tau 0.1, standardised): SSE and CPU seconds.
 - ``transform``: fit on the 1000 training rows (complete), then complete the first 200 validation rows
   with a share p of their entries hidden (mask seed 2016 + k): SSE on the hidden entries of ours and of
   scikit-learn's ``KNNImputer`` (its defaults, and its ``n_neighbors``/``weights`` chosen by the
@@ -19,6 +22,7 @@ Usage::
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults_speed.py fit --rows 1000
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults_speed.py large --large 3000
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults_speed.py path --sizes 150 300 --masks 3
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults_speed.py transform --masks 3
 """
 
@@ -70,6 +74,20 @@ def run_large(args):
     )
 
 
+def run_path(args):
+    for n in args.sizes:
+        X = load_oil("train", args.data)[0][:n]
+        for p in args.p:
+            for k in range(args.masks):
+                W = np.where(random_mask(X.shape, p, 2016 + k), X, np.nan)
+                line = []
+                for method in ("exact", "nystroem-warm"):
+                    est = KernelRegularizerImputer(gamma=None, tau=0.1, method=method, random_state=0)
+                    X_hat, cpu = timed(lambda est=est, W=W: est.fit_transform(W))
+                    line.append(f"{method} SSE {np.sum((X_hat - X) ** 2):.3f} ({cpu:.1f} CPU s)")
+                print(f"path n={n} p={p:g} seed={2016 + k}: " + ", ".join(line), flush=True)
+
+
 def run_transform(args):
     X_train = load_oil("train", args.data)[0]
     X_new = load_oil("validation", args.data)[0][:200]
@@ -105,7 +123,8 @@ def main():
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("what", choices=["fit", "large", "transform"])
+    parser.add_argument("what", choices=["fit", "large", "path", "transform"])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[150, 300])
     parser.add_argument("--rows", type=int, default=1000)
     parser.add_argument("--large", type=int, default=3000)
     parser.add_argument("--p", type=float, nargs="+", default=[0.1, 0.25, 0.5])
@@ -114,7 +133,7 @@ def main():
     parser.add_argument("--data", default=None)
     args = parser.parse_args()
     args.params = {"ard": True} if args.ard else {}
-    {"fit": run_fit, "large": run_large, "transform": run_transform}[args.what](args)
+    {"fit": run_fit, "large": run_large, "path": run_path, "transform": run_transform}[args.what](args)
 
 
 if __name__ == "__main__":

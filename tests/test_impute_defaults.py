@@ -100,3 +100,36 @@ def test_a_bad_knob_names_the_choices(problem, params):
     _, W, _ = problem
     with pytest.raises(ValueError, match="auto"):
         KernelRegularizerImputer(**params).fit(W)
+
+
+def test_transform_chooses_its_starts_at_the_first_new_row_by_the_row_folds(problem):
+    X, W, _ = problem
+    est = KernelRegularizerImputer().fit(W[:30])
+    assert not hasattr(est, "n_neighbors_")  # nothing chosen until a new row comes
+    np.testing.assert_array_equal(est.transform(W[:30]), est.completed_)  # seen rows: no choice needed
+    assert not hasattr(est, "n_neighbors_")
+    X_new = est.transform(W[30:])
+    assert set(est.transform_results_) == set(module.TUNE_TRANSFORM)
+    best = min(est.transform_results_, key=est.transform_results_.get)
+    assert (est.n_neighbors_, est.starts_) == best
+    fixed = KernelRegularizerImputer(gamma=est.gamma_, tau=est.tau_, n_neighbors=best[0], starts=best[1])
+    np.testing.assert_array_equal(fixed.fit(W[:30]).transform(W[30:]), X_new)
+    assert not hasattr(fixed, "transform_results_")
+
+
+@pytest.mark.parametrize("configfile", ["", "config/quick.yaml"])
+@pytest.mark.parametrize("name", ["table2", "table2_full", "table2_all"])
+def test_the_paper_tables_pass_every_knob_the_defaults_would_tune(name, configfile):
+    """Table 2's Ours keeps the paper's settings: no "auto" default reaches its solve (transform is
+    never called there)."""
+    from pathlib import Path
+
+    from nldr import experiments
+    from nldr.experiments.notebook import load_config
+    from nldr.experiments.table2 import paper_methods
+
+    config = load_config(Path(__file__).resolve().parents[1], configfile)
+    ours = paper_methods(experiments.get(name).settings(config))["Ours"]
+    params = ours.get_params()
+    assert isinstance(params["gamma"], float) and isinstance(params["tau"], float)
+    assert params["standardize"] is False and params["method"] in ("exact", "nystroem-warm", "nystroem")

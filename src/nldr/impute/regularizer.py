@@ -109,23 +109,34 @@ class KernelRegularizerImputer(MaskedImputerBase):
     data term is a penalty, not a constraint); ``transform`` keeps the observed entries of new rows.
 
     With no arguments this is the recommended configuration: columns standardised on their observed
-    entries, the width by the median rule in standardised units, tau 0.1 in standardised units, the
-    exact solver up to :data:`AUTO_EXACT_MAX_ROWS` rows and the Nystroem warm start above (evidence:
-    docs/REPRODUCTION.md, "The imputer's defaults"). The paper's Table 2 is
+    entries; tau and the width chosen inside ``fit`` by the hold-out search on the observed entries
+    (:class:`nldr.model_selection.HoldoutSearch`: the widths :data:`TUNE_GAMMA_MULTIPLES` of the
+    median rule times the taus :data:`TUNE_TAUS`, on :data:`TUNE_FOLDS` folds, one cold solve per
+    fold and warm starts along tau); ``transform``'s neighbours and starts chosen on row folds of
+    the training rows (:data:`TUNE_TRANSFORM`, at the first new row); the exact solver up to
+    :data:`AUTO_EXACT_MAX_ROWS` rows and the Nystroem warm start above (evidence:
+    docs/REPRODUCTION.md, "The imputer's defaults"). That is 17 solves in ``fit`` and 2 more at the
+    first new row; below :data:`TUNE_MIN_ROWS` rows nothing is searched (tau 0.1, the median rule,
+    the mean of 5 neighbours). The paper's Table 2 is
     ``KernelRegularizerImputer(standardize=False, gamma=0.075, tau=0.1, method="exact")``.
 
     Parameters
     ----------
     missing_values : np.nan or float, default np.nan
         The marker of a missing entry (NaN is always missing too).
-    gamma : float > 0 or None, default None
+    gamma : float > 0, None or "auto", default "auto"
         RBF inverse squared width, in 1 / (units of the solved matrix)^2: standardised units when
         ``standardize``, the data's units otherwise. None: the median rule on the
         mean-imputed (standardised) matrix: :data:`MEDIAN_RULE_MULTIPLE` / (median squared distance
-        between its rows).
-    tau : float > 0, default 0.1
+        between its rows). "auto": the hold-out search's choice among :data:`TUNE_GAMMA_MULTIPLES`
+        / (that median squared distance).
+    tau : float > 0 or "auto", default "auto"
         Weight of the trace norm of C (the feature-space data's nuclear norm), in the data term's
         units (squared units of the solved matrix). Larger tau: a lower-dimensional manifold.
+        "auto": the hold-out search's choice among :data:`TUNE_TAUS`. The search's folds hide
+        :data:`TUNE_HOLDOUT` of the observed entries each (seeded by ``random_state``, 0 when None),
+        its fold solves stop at looser tolerances and use the Nystroem kernel (100 landmarks) above
+        :data:`AUTO_EXACT_MAX_ROWS` rows; the smallest mean squared hold-out error (data units) wins.
     standardize : bool, default True
         Solve on columns centred and scaled by their observed entries' mean and standard deviation
         (a constant column is only centred), and return the estimate in the data's units. False
@@ -152,12 +163,17 @@ class KernelRegularizerImputer(MaskedImputerBase):
         :func:`~nldr.regularizer.minimize_regularized` (None: its defaults 1, 10, 1e4, the paper's).
     verbose : bool, default False
         Print one line per penalty stage.
-    n_neighbors : int >= 1, default 5
+    n_neighbors : int >= 1 or "auto", default "auto"
         ``transform``: the training rows nearest to a new row on its observed entries, which give
         its starts.
-    starts : {"mean", "each"}, default "mean"
+    starts : {"mean", "each", "auto"}, default "auto"
         ``transform``: one start at the neighbours' mean, or one per neighbour with the local minima
-        averaged (:meth:`nldr.robust_kpca.RobustKernelPCA.complete`).
+        averaged (:meth:`nldr.robust_kpca.RobustKernelPCA.complete`). "auto" (either knob): the
+        first ``transform`` of a row not seen in ``fit`` chooses (n_neighbors, starts) among the
+        pairs :data:`TUNE_TRANSFORM` that agree with the fixed knob, by :data:`TUNE_FOLDS` row
+        folds: the manifold fitted (at the chosen tau and width) on the other rows completes
+        :data:`TUNE_ROW_SHARE` of the rows with a share of their observed
+        entries hidden (the training matrix's missing share, at least :data:`TUNE_ROW_HIDDEN`).
     weights : {"uniform", "distance"}, default "uniform"
         ``transform`` with ``starts="each"``: how the local minima are averaged.
     random_state : int, RandomState or None, default None
@@ -174,6 +190,14 @@ class KernelRegularizerImputer(MaskedImputerBase):
     ----------
     gamma_, tau_ : float
         The width and weight used (standardised units when ``standardize``).
+    cv_results_ : dict of arrays
+        The tau and width search's record (:attr:`nldr.model_selection.HoldoutSearch.cv_results_`),
+        when ``gamma`` or ``tau`` is "auto" and the rows are at least :data:`TUNE_MIN_ROWS`.
+    n_neighbors_, starts_ : int, str
+        ``transform``'s neighbours and starts (set by ``fit`` when fixed or not searched, by the
+        first ``transform`` of a new row when searched).
+    transform_results_ : dict
+        (n_neighbors, starts) -> mean squared error of the row folds, when they were searched.
     method_ : str
         The solver path used, "exact" or "nystroem-warm".
     mean_, scale_ : arrays, shape (n_features,)
@@ -421,11 +445,12 @@ class KernelRegularizerImputer(MaskedImputerBase):
                 "tau": 0.1 if _is_auto(tau) else grid["tau"][0],
             }
         self.gamma_, self.tau_ = float(chosen["gamma"]), float(chosen["tau"])
-        self.__dict__.pop("transform_results_", None)
+        for name in ("transform_results_", "n_neighbors_", "starts_"):
+            self.__dict__.pop(name, None)
         pairs = self._transform_candidates()
-        if len(pairs) > 1 and W.shape[0] >= TUNE_MIN_ROWS:
-            pairs = [self._tune_transform(W, mask, self.gamma_, self.tau_)]
-        self.n_neighbors_, self.starts_ = int(pairs[0][0]), str(pairs[0][1])
+        if len(pairs) == 1 or W.shape[0] < TUNE_MIN_ROWS:  # otherwise chosen at the first new row
+            self.n_neighbors_, self.starts_ = int(pairs[0][0]), str(pairs[0][1])
+        self._training = (W, mask)
         tau = self.tau_
         self.method_, kwargs = self._solver_arguments(W.shape[0], warm)
         result = minimize_regularized(
@@ -459,6 +484,9 @@ class KernelRegularizerImputer(MaskedImputerBase):
             )
         Z = np.where(mask, (W - self.mean_) / self.scale_, 0.0)
         S = self.manifold_rows_
+        if not hasattr(self, "n_neighbors_"):  # "auto": chosen once, before the first new row
+            k, starts = self._tune_transform(*self._training, self.gamma_, self.tau_)
+            self.n_neighbors_, self.starts_ = int(k), str(starts)
         n_neighbors, starts = self.n_neighbors_, self.starts_
         nearest, distance = nearest_rows(S, Z, mask, min(n_neighbors, S.shape[0]))
         rows = S[nearest]
