@@ -10,9 +10,8 @@ shared: CPU seconds, not wall time, and compare methods within one session). Per
 - ``paper``: the paper's Table 2 settings written out (raw columns, gamma 0.075, tau 0.1, exact);
 - ``missForest100``: missForest with 100 trees (``missforest_imputer(n_estimators=100)``), its
   ``max_features`` in {1/3, 1} chosen by :class:`nldr.model_selection.HoldoutSearch` on ``--folds``
-  hold-out folds of the observed entries (seed = the mask's seed), refitted on every observed entry;
-- ``ard``: the default with ``ard=True`` (per-column widths chosen by the hold-out, see the class
-  docstring).
+  hold-out folds of the observed entries (seed = the mask's seed), refitted on every observed entry.
+  (Per-column widths are tried by ``bench_ard.py``.)
 
 Appends one row per (mask, method) to ``--out`` as it goes (rows already there are skipped), then
 prints mean, sample sd and count of the SSE per (rows, p, method).
@@ -37,14 +36,12 @@ from nldr.experiments.table2 import random_mask
 from nldr.impute import KernelRegularizerImputer
 from nldr.model_selection import HoldoutSearch, missforest_imputer
 
-METHODS = ("default", "paper", "missForest100", "ard")
+METHODS = ("default", "paper", "missForest100")
 
 
 def estimator(method: str, seed: int, folds: int):
     if method == "default":
         return KernelRegularizerImputer()
-    if method == "ard":
-        return KernelRegularizerImputer(ard=True)
     if method == "paper":
         return KernelRegularizerImputer(standardize=False, gamma=0.075, tau=0.1, center=False, method="exact")
     if method == "missForest100":
@@ -72,7 +69,7 @@ def main():
     parser.add_argument("--first-mask", type=int, default=0)
     parser.add_argument("--seed", type=int, default=2016)
     parser.add_argument("--folds", type=int, default=3)
-    parser.add_argument("--methods", nargs="+", default=list(METHODS[:3]))
+    parser.add_argument("--methods", nargs="+", default=list(METHODS))
     parser.add_argument("--data", default=None)
     parser.add_argument("--out", default="results/benchmarks/defaults.csv")
     args = parser.parse_args()

@@ -129,10 +129,9 @@ def main():
     parser.add_argument("--large", type=int, default=3000)
     parser.add_argument("--p", type=float, nargs="+", default=[0.1, 0.25, 0.5])
     parser.add_argument("--masks", type=int, default=3)
-    parser.add_argument("--ard", action="store_true", help="pass ard=True to the imputer")
     parser.add_argument("--data", default=None)
     args = parser.parse_args()
-    args.params = {"ard": True} if args.ard else {}
+    args.params = {}
     {"fit": run_fit, "large": run_large, "path": run_path, "transform": run_transform}[args.what](args)
 
 
