@@ -80,7 +80,7 @@ def test_standardised_solve_is_the_solve_on_standardised_columns(rng):
 def test_default_width_is_the_median_rule_in_standardised_units(rng):
     X = surface(30, rng) * 100.0
     W, mask = hide(X, 0.2, rng)
-    est = KernelRegularizerImputer(method="exact").fit(W)
+    est = KernelRegularizerImputer(gamma=None, tau=0.1, method="exact").fit(W)
     S0 = mean_impute((W - est.mean_) / est.scale_, mask)
     d2 = ((S0[:, None, :] - S0[None, :, :]) ** 2).sum(axis=2)[np.triu_indices(30, 1)]
     assert est.gamma_ == pytest.approx(MEDIAN_RULE_MULTIPLE / np.median(d2), rel=1e-12)
@@ -118,9 +118,9 @@ def test_transform_of_the_training_rows_is_fit_transform(rng):
 def test_each_start_averages_the_local_minima(rng):
     X = surface(60, rng)
     W, mask = hide(X, 0.3, rng)
-    est = KernelRegularizerImputer(starts="each", n_neighbors=3).fit(W[:50])
+    est = KernelRegularizerImputer(gamma=None, tau=0.1, starts="each", n_neighbors=3).fit(W[:50])
     one = clone(est).set_params(n_neighbors=1).fit(W[:50])
-    mean_one = KernelRegularizerImputer(starts="mean", n_neighbors=1).fit(W[:50])
+    mean_one = KernelRegularizerImputer(gamma=None, tau=0.1, starts="mean", n_neighbors=1).fit(W[:50])
     # with one neighbour, "each" and "mean" solve the same problem from the same start
     np.testing.assert_allclose(one.transform(W[50:]), mean_one.transform(W[50:]), atol=1e-12)
     assert np.isfinite(est.transform(W[50:])).all()
@@ -129,12 +129,12 @@ def test_each_start_averages_the_local_minima(rng):
 def test_nystroem_warm_path_gives_a_finite_answer_with_an_exact_last_stage(rng):
     X = surface(120, rng, noise=0.01)
     W, mask = hide(X, 0.25, rng)
-    est = KernelRegularizerImputer(method="nystroem-warm", random_state=0).fit(W)
+    est = KernelRegularizerImputer(gamma=None, tau=0.1, method="nystroem-warm", random_state=0).fit(W)
     assert est.method_ == "nystroem-warm"
     assert est.result_.n_stages == len(est.result_.rho_history)
     assert est.result_.rho_history[-1] == est.result_.rho_history[-2]  # the last rho solved twice
     assert np.isfinite(est.completed_).all()
-    again = KernelRegularizerImputer(method="nystroem-warm", random_state=0).fit(W)
+    again = KernelRegularizerImputer(gamma=None, tau=0.1, method="nystroem-warm", random_state=0).fit(W)
     np.testing.assert_array_equal(again.completed_, est.completed_)
 
 
@@ -218,7 +218,7 @@ def test_clone_and_grid_search(rng):
     est = KernelRegularizerImputer(tau=0.5, gamma=0.2)
     twin = clone(est)
     assert twin.get_params() == est.get_params() and twin is not est
-    pipe = Pipeline([("impute", KernelRegularizerImputer()), ("model", LogisticRegression())])
+    pipe = Pipeline([("impute", KernelRegularizerImputer(gamma=None)), ("model", LogisticRegression())])
     search = GridSearchCV(pipe, {"impute__tau": [0.1, 1.0]}, cv=2).fit(W, y)
     assert search.best_params_["impute__tau"] in (0.1, 1.0)
     assert search.cv_results_["mean_test_score"].shape == (2,)

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 from sklearn.utils import check_random_state
 
-from .._options import ExactOptions, last_stage_only, solver_options
+from .._options import ExactOptions, NystroemOptions, last_stage_only, solver_options
 from .._threads import blas_threads_for
 from .._validation import check_count, check_positive
 from ..baselines._masked import mean_fill, observed_column_means
@@ -17,7 +17,21 @@ from ..preimage import Subspace, average_solutions, complete_from_starts, neares
 from ..regularizer import minimize_regularized
 from ._base import MaskedImputerBase
 
-__all__ = ["KernelRegularizerImputer", "AUTO_EXACT_MAX_ROWS", "MEDIAN_RULE_MULTIPLE", "METHODS", "LOSSES"]
+__all__ = [
+    "KernelRegularizerImputer",
+    "AUTO_EXACT_MAX_ROWS",
+    "MEDIAN_RULE_MULTIPLE",
+    "METHODS",
+    "TUNE_GAMMA_MULTIPLES",
+    "TUNE_TAUS",
+    "TUNE_FOLDS",
+    "TUNE_HOLDOUT",
+    "TUNE_MIN_ROWS",
+    "TUNE_TRANSFORM",
+    "TUNE_ROW_SHARE",
+    "TUNE_ROW_HIDDEN",
+    "LOSSES",
+]
 
 #: data losses of ``loss``
 LOSSES = ("squared", "huber")
@@ -35,6 +49,29 @@ _DEFAULT_SCHEDULE = {"rho0": 1.0, "rho_max": 1e4}
 #: the default width is this multiple of 1 / (median squared distance between rows), standardised units
 #: (docs/REPRODUCTION.md, "The imputer's defaults")
 MEDIAN_RULE_MULTIPLE = 0.25
+#: ``gamma="auto"``: the hold-out chooses among these multiples of 1 / (median squared row distance)
+#: (docs/REPRODUCTION.md, "The imputer's defaults")
+TUNE_GAMMA_MULTIPLES = (0.125, 0.25, 0.5, 1.0)
+#: ``tau="auto"``: the hold-out chooses among these taus (standardised units when ``standardize``)
+TUNE_TAUS = (0.1, 0.3)
+#: the tuning's Monte-Carlo hold-out folds: how many, and the share of observed entries each hides
+TUNE_FOLDS = 2
+TUNE_HOLDOUT = 0.1
+#: below this many rows "auto" is not searched: tau 0.1 and the median rule's width
+TUNE_MIN_ROWS = 20
+#: ``n_neighbors="auto"``, ``starts="auto"``: the row folds choose ``transform``'s (n_neighbors, starts)
+#: among these (the second is the choice when the rows are too few to tune)
+TUNE_TRANSFORM = ((1, "mean"), (5, "mean"), (10, "mean"), (5, "each"))
+#: the row folds hold out this share of the training rows, and hide this least share of their entries
+TUNE_ROW_SHARE = 0.2
+TUNE_ROW_HIDDEN = 0.25
+#: the tuning's fold solves stop at these looser tolerances (they only rank candidates)
+_TUNE_TOLERANCES = {"tol": 1e-7, "gtol": 1e-4}
+#: the tuning's fold solves above AUTO_EXACT_MAX_ROWS rows: the Nystroem kernel of this many landmarks
+_TUNE_LANDMARKS = 100
+#: a fold's tau path stops once its error exceeds this factor times the path's best so far
+_TUNE_STOP_FACTOR = 1.5
+_NYSTROEM_OPTIONS = frozenset(f.name for f in dataclasses.fields(NystroemOptions))
 
 
 def _median_rule_gamma(S: np.ndarray) -> float:
@@ -76,23 +113,34 @@ class KernelRegularizerImputer(MaskedImputerBase):
     data term is a penalty, not a constraint); ``transform`` keeps the observed entries of new rows.
 
     With no arguments this is the recommended configuration: columns standardised on their observed
-    entries, the width by the median rule in standardised units, tau 0.1 in standardised units, the
-    exact solver up to :data:`AUTO_EXACT_MAX_ROWS` rows and the Nystroem warm start above (evidence:
-    docs/REPRODUCTION.md, "The imputer's defaults"). The paper's Table 2 is
+    entries; tau and the width chosen inside ``fit`` by the hold-out search on the observed entries
+    (:class:`nldr.model_selection.HoldoutSearch`: the widths :data:`TUNE_GAMMA_MULTIPLES` of the
+    median rule times the taus :data:`TUNE_TAUS`, on :data:`TUNE_FOLDS` folds, one cold solve per
+    fold and warm starts along tau); ``transform``'s neighbours and starts chosen on row folds of
+    the training rows (:data:`TUNE_TRANSFORM`, at the first new row); the exact solver up to
+    :data:`AUTO_EXACT_MAX_ROWS` rows and the Nystroem warm start above (evidence:
+    docs/REPRODUCTION.md, "The imputer's defaults"). That is 17 solves in ``fit`` and 2 more at the
+    first new row; below :data:`TUNE_MIN_ROWS` rows nothing is searched (tau 0.1, the median rule,
+    the mean of 5 neighbours). The paper's Table 2 is
     ``KernelRegularizerImputer(standardize=False, gamma=0.075, tau=0.1, method="exact")``.
 
     Parameters
     ----------
     missing_values : np.nan or float, default np.nan
         The marker of a missing entry (NaN is always missing too).
-    gamma : float > 0 or None, default None
+    gamma : float > 0, None or "auto", default "auto"
         RBF inverse squared width, in 1 / (units of the solved matrix)^2: standardised units when
         ``standardize``, the data's units otherwise. None: the median rule on the
         mean-imputed (standardised) matrix: :data:`MEDIAN_RULE_MULTIPLE` / (median squared distance
-        between its rows).
-    tau : float > 0, default 0.1
+        between its rows). "auto": the hold-out search's choice among :data:`TUNE_GAMMA_MULTIPLES`
+        / (that median squared distance).
+    tau : float > 0 or "auto", default "auto"
         Weight of the trace norm of C (the feature-space data's nuclear norm), in the data term's
         units (squared units of the solved matrix). Larger tau: a lower-dimensional manifold.
+        "auto": the hold-out search's choice among :data:`TUNE_TAUS`. The search's folds hide
+        :data:`TUNE_HOLDOUT` of the observed entries each (seeded by ``random_state``, 0 when None),
+        its fold solves stop at looser tolerances and use the Nystroem kernel (100 landmarks) above
+        :data:`AUTO_EXACT_MAX_ROWS` rows; the smallest mean squared hold-out error (data units) wins.
     standardize : bool, default True
         Solve on columns centred and scaled by their observed entries' mean and standard deviation
         (a constant column is only centred), and return the estimate in the data's units. False
@@ -119,12 +167,17 @@ class KernelRegularizerImputer(MaskedImputerBase):
         :func:`~nldr.regularizer.minimize_regularized` (None: its defaults 1, 10, 1e4, the paper's).
     verbose : bool, default False
         Print one line per penalty stage.
-    n_neighbors : int >= 1, default 5
+    n_neighbors : int >= 1 or "auto", default "auto"
         ``transform``: the training rows nearest to a new row on its observed entries, which give
         its starts.
-    starts : {"mean", "each"}, default "mean"
+    starts : {"mean", "each", "auto"}, default "auto"
         ``transform``: one start at the neighbours' mean, or one per neighbour with the local minima
-        averaged (:meth:`nldr.robust_kpca.RobustKernelPCA.complete`).
+        averaged (:meth:`nldr.robust_kpca.RobustKernelPCA.complete`). "auto" (either knob): the
+        first ``transform`` of a row not seen in ``fit`` chooses (n_neighbors, starts) among the
+        pairs :data:`TUNE_TRANSFORM` that agree with the fixed knob, by :data:`TUNE_FOLDS` row
+        folds: the manifold fitted (at the chosen tau and width) on the other rows completes
+        :data:`TUNE_ROW_SHARE` of the rows with a share of their observed
+        entries hidden (the training matrix's missing share, at least :data:`TUNE_ROW_HIDDEN`).
     weights : {"uniform", "distance"}, default "uniform"
         ``transform`` with ``starts="each"``: how the local minima are averaged.
     random_state : int, RandomState or None, default None
@@ -151,6 +204,14 @@ class KernelRegularizerImputer(MaskedImputerBase):
     ----------
     gamma_, tau_ : float
         The width and weight used (standardised units when ``standardize``).
+    cv_results_ : dict of arrays
+        The tau and width search's record (:attr:`nldr.model_selection.HoldoutSearch.cv_results_`),
+        when ``gamma`` or ``tau`` is "auto" and the rows are at least :data:`TUNE_MIN_ROWS`.
+    n_neighbors_, starts_ : int, str
+        ``transform``'s neighbours and starts (set by ``fit`` when fixed or not searched, by the
+        first ``transform`` of a new row when searched).
+    transform_results_ : dict
+        (n_neighbors, starts) -> mean squared error of the row folds, when they were searched.
     method_ : str
         The solver path used, "exact" or "nystroem-warm".
     mean_, scale_ : arrays, shape (n_features,)
@@ -185,16 +246,16 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self,
         missing_values=np.nan,
         *,
-        gamma=None,
-        tau=0.1,
+        gamma="auto",
+        tau="auto",
         standardize=True,
         center=False,
         method="auto",
         options=None,
         schedule=None,
         verbose=False,
-        n_neighbors=5,
-        starts="mean",
+        n_neighbors="auto",
+        starts="auto",
         weights="uniform",
         random_state=None,
         warm_start=False,
@@ -223,13 +284,16 @@ class KernelRegularizerImputer(MaskedImputerBase):
     def _check_params(self):
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}; got {self.method!r}")
-        if self.starts not in ("mean", "each"):
-            raise ValueError(f"starts must be 'mean' or 'each'; got {self.starts!r}")
+        if self.starts not in ("mean", "each", "auto"):
+            raise ValueError(f"starts must be 'mean', 'each' or 'auto'; got {self.starts!r}")
         if self.weights not in ("uniform", "distance"):
             raise ValueError(f"weights must be 'uniform' or 'distance'; got {self.weights!r}")
-        check_count(self.n_neighbors, "n_neighbors")
-        tau = check_positive(self.tau, "tau")
-        gamma = None if self.gamma is None else check_positive(self.gamma, "gamma")
+        if not _is_auto(self.n_neighbors):
+            check_count(self.n_neighbors, "n_neighbors (an int >= 1 or 'auto')")
+        tau = "auto" if _is_auto(self.tau) else check_positive(self.tau, "tau (a float > 0 or 'auto')")
+        gamma = self.gamma
+        if not (gamma is None or _is_auto(gamma)):
+            gamma = check_positive(gamma, "gamma (a float > 0, None or 'auto')")
         if self.options is not None and not isinstance(self.options, dict):
             raise ValueError(f"options must be a dict of the method's options or None; got {self.options!r}")
         schedule = {} if self.schedule is None else self.schedule
@@ -274,6 +338,109 @@ class KernelRegularizerImputer(MaskedImputerBase):
         kwargs = {"method": method, "options": options, "verbose": bool(self.verbose), **schedule}
         return method, last_stage_only(kwargs, **_DEFAULT_SCHEDULE) if warm else kwargs
 
+    def _grid(self, gamma, tau, median_rule: float) -> dict:
+        """The tuning's candidates: every "auto" knob over its grid, the others at their one value."""
+        if _is_auto(gamma):
+            gammas = [float(m * median_rule / MEDIAN_RULE_MULTIPLE) for m in TUNE_GAMMA_MULTIPLES]
+        else:
+            gammas = [median_rule if gamma is None else float(gamma)]
+        return {"gamma": gammas, "tau": [float(t) for t in TUNE_TAUS] if _is_auto(tau) else [float(tau)]}
+
+    def _tune(self, W, mask, grid: dict) -> dict:
+        """Choose gamma and tau among ``grid`` by the hold-out search on the observed entries of W.
+
+        :class:`~nldr.model_selection.HoldoutSearch` with :data:`TUNE_FOLDS` Monte-Carlo folds, each
+        hiding :data:`TUNE_HOLDOUT` of the observed entries (seeded by ``random_state``, 0 when None),
+        the candidates of a fold solved as warm-started paths along tau from the smallest up (one
+        cold solve per fold), looser tolerances, and the Nystroem kernel above
+        :data:`AUTO_EXACT_MAX_ROWS` rows; the smallest mean squared hold-out error wins. Returns the
+        chosen ``{"gamma", "tau"}`` and sets ``cv_results_``."""
+        from ..model_selection.search import HoldoutSearch  # the search's folds import the imputers
+
+        seed = self._tune_seed()
+        base = self.get_params()
+        base.update(gamma=grid["gamma"][0], tau=grid["tau"][0], warm_start=False, verbose=False)
+        base.update(n_neighbors=TUNE_TRANSFORM[1][0], starts="mean")  # transform is not scored here
+        estimator = type(self)(**base)
+        fold_params = self._fold_solver(W.shape[0])
+        search = HoldoutSearch(
+            estimator,
+            grid,
+            n_folds=TUNE_FOLDS,
+            holdout=TUNE_HOLDOUT,
+            random_state=seed,
+            path="tau",
+            stop_factor=_TUNE_STOP_FACTOR,
+            fold_params=fold_params,
+            refit=False,
+            verbose=bool(self.verbose),
+        )
+        search.fit(np.where(mask, W, np.nan))
+        self.cv_results_ = search.cv_results_
+        return dict(search.best_params_)
+
+    def _transform_candidates(self) -> list[tuple[int, str]]:
+        """The (n_neighbors, starts) pairs the row folds compare: the "auto" ones over their grid."""
+        pairs = [c for c in TUNE_TRANSFORM if _is_auto(self.n_neighbors) or c[0] == self.n_neighbors]
+        pairs = [c for c in pairs if self.starts == "auto" or c[1] == self.starts]
+        if not pairs:  # a fixed n_neighbors or starts outside the grid
+            k = TUNE_TRANSFORM[1][0] if _is_auto(self.n_neighbors) else int(self.n_neighbors)
+            pairs = [(k, s) for s in ("mean", "each") if self.starts in ("auto", s)]
+        return pairs
+
+    def _tune_transform(self, W, mask, gamma: float, tau: float) -> tuple[int, str]:
+        """Choose ``transform``'s (n_neighbors, starts) by :data:`TUNE_FOLDS` row folds of the training rows.
+
+        Each fold fits the manifold (at ``gamma``, ``tau``, the tuning's fold solver) on the other rows,
+        hides a share (the training matrix's missing share, at least :data:`TUNE_ROW_HIDDEN`) of the
+        observed entries of :data:`TUNE_ROW_SHARE` of the rows, completes them with every candidate, and
+        scores the mean squared error on the hidden entries (data units); the smallest mean wins. Sets
+        ``transform_results_`` (candidate -> mean error)."""
+        candidates = self._transform_candidates()
+        if len(candidates) == 1:
+            return candidates[0]
+        n = W.shape[0]
+        rng = np.random.default_rng(self._tune_seed())
+        share = max(TUNE_ROW_HIDDEN, 1.0 - mask.mean())
+        base = self.get_params()
+        base.update(gamma=gamma, tau=tau, warm_start=False, verbose=False, **self._fold_solver(n))
+        base.update(n_neighbors=TUNE_TRANSFORM[1][0], starts="mean")
+        errors = np.zeros(len(candidates))
+        for _ in range(TUNE_FOLDS):
+            held = np.zeros(n, dtype=bool)
+            held[rng.choice(n, max(1, int(round(TUNE_ROW_SHARE * n))), replace=False)] = True
+            observed = mask[held]
+            hidden = observed & (rng.random(observed.shape) < share)
+            for i in np.flatnonzero(observed.any(axis=1) & ~(observed & ~hidden).any(axis=1)):
+                hidden[i, rng.choice(np.flatnonzero(observed[i]))] = False  # each row keeps an entry
+            if not hidden.any():
+                continue
+            fold = type(self)(**base).fit(np.where(mask[~held], W[~held], np.nan))
+            if fold.n_components_ == 0:
+                return candidates[0] if (TUNE_TRANSFORM[1] not in candidates) else TUNE_TRANSFORM[1]
+            seen = observed & ~hidden
+            for c, (k, starts) in enumerate(candidates):
+                fold.n_neighbors_, fold.starts_ = k, starts
+                X_hat = fold._complete(np.where(seen, W[held], 0.0), seen)
+                errors[c] += np.mean((X_hat - W[held])[hidden] ** 2) / TUNE_FOLDS
+        self.transform_results_ = {candidates[c]: float(errors[c]) for c in range(len(candidates))}
+        return candidates[int(np.argmin(errors))]
+
+    def _tune_seed(self) -> int:
+        if self.random_state is None:
+            return 0
+        return int(check_random_state(self.random_state).randint(np.iinfo(np.int32).max))
+
+    def _fold_solver(self, n: int) -> dict:
+        """The tuning's fold solves: the exact kernel up to AUTO_EXACT_MAX_ROWS rows, the Nystroem kernel
+        above, at looser tolerances (they only rank candidates)."""
+        if n <= AUTO_EXACT_MAX_ROWS:
+            options = {k: v for k, v in (self.options or {}).items() if k in _EXACT_OPTIONS}
+            return {"method": "exact", "options": {**options, **_TUNE_TOLERANCES}}
+        options = {k: v for k, v in (self.options or {}).items() if k in _NYSTROEM_OPTIONS}
+        options = {"landmarks": _TUNE_LANDMARKS, "landmark_seed": self._tune_seed(), **options}
+        return {"method": "nystroem", "options": {**options, **_TUNE_TOLERANCES}}
+
     def _solve(self, W, mask):
         gamma, tau = self._check_params()
         self.mean_, self.scale_ = self._standardisation(W, mask)
@@ -283,8 +450,25 @@ class KernelRegularizerImputer(MaskedImputerBase):
         warm = previous is not None and previous.shape == W.shape
         if warm:  # the previous estimate, in this fit's (standardised) units
             S0 = previous if not self.standardize else (previous - self.mean_) / self.scale_
-        self.gamma_ = _median_rule_gamma(mean_fill(Z, mask)) if gamma is None else gamma
-        self.tau_ = tau
+        median_rule = _median_rule_gamma(mean_fill(Z, mask)) if gamma is None or _is_auto(gamma) else None
+        grid = self._grid(gamma, tau, median_rule)
+        tuned = (_is_auto(gamma) or _is_auto(tau)) and W.shape[0] >= TUNE_MIN_ROWS
+        if tuned:
+            chosen = self._tune(W, mask, grid)
+        else:
+            self.__dict__.pop("cv_results_", None)
+            chosen = {
+                "gamma": median_rule if _is_auto(gamma) else grid["gamma"][0],
+                "tau": 0.1 if _is_auto(tau) else grid["tau"][0],
+            }
+        self.gamma_, self.tau_ = float(chosen["gamma"]), float(chosen["tau"])
+        for name in ("transform_results_", "n_neighbors_", "starts_"):
+            self.__dict__.pop(name, None)
+        pairs = self._transform_candidates()
+        if len(pairs) == 1 or W.shape[0] < TUNE_MIN_ROWS:  # otherwise chosen at the first new row
+            self.n_neighbors_, self.starts_ = int(pairs[0][0]), str(pairs[0][1])
+        self._training = (W, mask)
+        tau = self.tau_
         self.method_, kwargs = self._solver_arguments(W.shape[0], warm)
         result = minimize_regularized(
             self._data_term(Z, mask), S0, gamma=self.gamma_, tau=tau, center=bool(self.center), **kwargs
@@ -323,13 +507,21 @@ class KernelRegularizerImputer(MaskedImputerBase):
             )
         Z = np.where(mask, (W - self.mean_) / self.scale_, 0.0)
         S = self.manifold_rows_
-        nearest, distance = nearest_rows(S, Z, mask, self.n_neighbors)
+        if not hasattr(self, "n_neighbors_"):  # "auto": chosen once, before the first new row
+            k, starts = self._tune_transform(*self._training, self.gamma_, self.tau_)
+            self.n_neighbors_, self.starts_ = int(k), str(starts)
+        n_neighbors, starts = self.n_neighbors_, self.starts_
+        nearest, distance = nearest_rows(S, Z, mask, min(n_neighbors, S.shape[0]))
         rows = S[nearest]
         rows[~mask.any(axis=1)] = S.mean(axis=0)
-        if self.starts == "mean":
+        if starts == "mean":
             rows = rows.mean(axis=1, keepdims=True)
         X0 = np.where(mask[:, None, :], Z[:, None, :], rows)
         with blas_threads_for(S.shape[0]):
             X_hat = complete_from_starts(self._subspace(), Z, mask, X0)
-        X_hat = X_hat[:, 0] if self.starts == "mean" else average_solutions(X_hat, distance, self.weights)
+        X_hat = X_hat[:, 0] if starts == "mean" else average_solutions(X_hat, distance, self.weights)
         return np.where(mask, W, X_hat * self.scale_ + self.mean_)
+
+
+def _is_auto(value) -> bool:
+    return isinstance(value, str) and value == "auto"
