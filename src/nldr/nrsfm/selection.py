@@ -8,18 +8,20 @@ its image coordinates), the method reconstructs from the rest, and the fold's sc
 squared reprojection error of the hidden points, ``mean ||w_f(x_j) - R_f s_f(x_j)||^2`` over the
 hidden (f, j), with the frame's camera R_f and the reconstructed 3D point s_f(x_j) (squared unit of
 the tracks). The score is invariant to the global gauge (R_f Q, Q^T s), so estimated cameras need no
-alignment. The chosen candidate (for TNH's tau: the smallest mean score over the folds) is refitted
-on every observed point. Nothing here sees the 3D ground truth.
+alignment. Nothing here sees the 3D ground truth.
+
+The search is :class:`nldr.model_selection.HoldoutSearch`, with the 2D points as its entries: the
+tracks W (F, 2P) with NaN at unobserved points are the matrix, a fold hiding the points ``h`` (F, P)
+hides the entries ``[h, h]``, and each candidate is a reconstruction whose completion of W is its
+reprojection R_f s_f of every point.
 
 - :func:`visibility_folds`: the hidden points of each fold (same seed, same folds).
-- :func:`select_tnh_tau`: TNH's tau with cameras estimated (Table 4's pipeline: rigid factorisation,
-  then TNH alternating with the camera LM, every tau from the rigid cameras, as the oracle search of
-  :func:`~nldr.experiments.table4.tune_tau` does). Each fold re-estimates the rigid cameras from
-  its own training points.
-- The kernel method's tau and width: :mod:`nldr.nrsfm.kernel_selection` (same folds and score).
+- :func:`select_tnh_tau`: TNH's tau with cameras estimated (Table 4's pipeline).
+- :func:`select_kernel`: the kernel method's tau and width, with known cameras (Table 3) or after
+  :func:`select_tnh_tau` (Table 4's kernel stage), by default keeping the paper's values unless the
+  evidence is against them.
 
-Cost. TNH's taus are always cold starts from the rigid cameras (a continuation in tau lands in a
-different basin, docs/REPRODUCTION.md#table-4-tnh). Folds run in parallel with ``n_jobs``.
+Folds run in parallel with ``n_jobs``.
 
 Layouts as in :mod:`nldr.nrsfm.layout`: tracks W2d (F, 2P), shapes X (F, 3P), cameras R (F, 2, 3),
 visibility masks (F, P), True where observed.
@@ -28,31 +30,54 @@ visibility masks (F, P), True where observed.
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
-from threadpoolctl import threadpool_limits
+from sklearn.base import BaseEstimator, TransformerMixin
 
-from .._cv import positive_grid, run_jobs, summarise_folds
+from .._cv import positive_grid
 from .._validation import check_count, check_positive
+from ..model_selection import HoldoutSearch
+from ..regularizer import minimize_regularized
 from .factorization import initialize_cameras
-from .reconstruct import Reconstruction, reconstruct
-from .reprojection import check_tracks, reprojection_error
+from .reconstruct import WIDTH_RULES, Reconstruction, reconstruct, solver_arguments
+from .reprojection import OrthographicReprojection, check_cameras, check_tracks
+from .tnh import trace_norm_heuristic
+from .variables import CameraFrameVariables
 
 __all__ = [
     "DEFAULT_TNH_TAUS",
+    "DEFAULT_KERNEL_TAUS",
+    "PAPER_KERNEL",
+    "MIN_MOVE",
+    "WIDTH_MULTIPLES",
     "visibility_folds",
     "TNHTauSelection",
     "select_tnh_tau",
+    "KernelSelection",
+    "select_kernel",
 ]
 
 #: TNH tau grid (unit of the tracks squared): 7 log-spaced values over Table 4's search interval [0.1, 100].
 DEFAULT_TNH_TAUS = tuple(float(t) for t in np.logspace(-1, 2, 7))
+#: Kernel tau grid: the paper's 1e-4 and half a decade either side, then 1e-3. Not 1e-5: with the paper's
+#: schedule (rho up to 10) the solve at 1e-5 stops at its start, the TNH (the regularizer's gradient is
+#: under L-BFGS's gtol; docs/REPRODUCTION.md#selection-nrsfm), so it is TNH, not a kernel candidate.
+DEFAULT_KERNEL_TAUS = (3e-5, 1e-4, 3e-4, 1e-3)
+#: The paper's kernel values as (tau, width multiple): the reference of ``rule="reference"``.
+PAPER_KERNEL = (1e-4, 1.0)
+#: A candidate whose fold solves all moved their start by less than this (relative Frobenius norm) is
+#: inactive: the regularizer did not act, the "solution" is the start method's.
+MIN_MOVE = 1e-3
+#: Kernel widths as multiples of the width rule's gamma (0.5: wider kernel, 2: narrower).
+WIDTH_MULTIPLES = (0.5, 1.0, 2.0)
 
 
 # --------------------------------------------------------------------------------------------------
-# Folds and the score
+# Folds, the score, and a reconstruction as an estimator of HoldoutSearch
 # --------------------------------------------------------------------------------------------------
 
 
@@ -132,6 +157,123 @@ def visibility_folds(
     return folds
 
 
+def _entries(hidden_points: np.ndarray) -> np.ndarray:
+    """Hidden points (F, P) as hidden entries (F, 2P) of the tracks: both image coordinates."""
+    return np.hstack([hidden_points, hidden_points])
+
+
+def _point_error(W, W_hat, hidden) -> float:
+    """HoldoutSearch's score: mean over the hidden points of ||w - R s||^2 (both coordinates), from
+    the tracks W and a reconstruction's reprojections W_hat (F, 2P) and the hidden entries."""
+    F, P = W.shape[0], W.shape[1] // 2
+    squared = np.sum((W.reshape(F, 2, P) - W_hat.reshape(F, 2, P)) ** 2, axis=1)
+    return float(squared[hidden[:, :P]].mean())
+
+
+class _Tracks(TransformerMixin, BaseEstimator):
+    """A reconstruction as an imputer of image tracks, for :class:`~nldr.model_selection.HoldoutSearch`.
+
+    ``fit(X)``: X (F, 2P) are the tracks with NaN at the unobserved points; ``transform`` returns the
+    reprojections R_f s_f (F, 2P) of the fit on every point. ``prior="tnh"``: TNH with estimated
+    cameras at ``tau`` from the rigid cameras of the observed points (``options``: the alternation's).
+    ``prior="kernel"``: the kernel method at ``tau`` and ``width_multiple`` times the ``width_rule``
+    of its start, minimize_regularized with the known ``cameras`` (``depth_scale``: camera-frame
+    L-BFGS) or, with ``cameras=None``, Table 4's kernel stage (:func:`~nldr.nrsfm.reconstruct`);
+    ``options`` are the regularizer's. ``start``: a mapping of the options of the start to compute
+    (the known-camera TNH's; with estimated cameras those of :func:`select_tnh_tau`'s TNH, ``tau``
+    included), or the start itself (a result with shapes ``x``, and cameras ``R`` if estimated).
+    With ``warm_start`` and the same observed points as the previous fit, the start is reused, and a
+    fit at the previous fit's width continues from its answer with the last penalty stage alone.
+    Fitted: ``result_``, ``gamma_`` and ``move_``, the relative change of the start's shapes.
+    """
+
+    def __init__(self, prior="kernel", tau=1.0, width_multiple=1.0, width_rule="d_med", cameras=None,
+                 start=None, options=None, depth_scale=None, warm_start=False):  # fmt: skip
+        self.prior = prior
+        self.tau = tau
+        self.width_multiple = width_multiple
+        self.width_rule = width_rule
+        self.cameras = cameras
+        self.start = start
+        self.options = options
+        self.depth_scale = depth_scale
+        self.warm_start = warm_start
+
+    def fit(self, X, y=None):
+        X = np.asarray(X, dtype=np.float64)
+        vis = ~np.isnan(X[:, : X.shape[1] // 2])
+        W = np.where(np.isnan(X), 0.0, X)
+        options = dict(self.options or {})
+        if self.prior == "tnh":
+            R0 = initialize_cameras(W, vis)
+            self.result_ = reconstruct(W, vis, prior="tnh", tau=self.tau, initial_cameras=R0, **options)
+            self.move_ = np.inf
+            return self
+        warm = self.warm_start and hasattr(self, "start_") and np.array_equal(self.visible_, vis)
+        if not warm:
+            self.start_ = self._start(W, vis)
+        start, previous = self.start_, self.result_ if warm else None
+        if previous is not None and self.width_multiple != self.fitted_width_:
+            previous = None  # another width: from the start, with the full schedule
+        if previous is not None:  # the last stage alone (known cameras: in the full schedule's units)
+            rho_max = options.get("rho_max", 1e4 if self.cameras is not None else 10.0)
+            if self.cameras is not None:
+                options = {"scale": float(np.sqrt(options.get("rho0", 1.0))), **options}
+            options.update(rho0=rho_max, rho_max=rho_max)
+        self.gamma_ = gamma = float(self.width_multiple) * WIDTH_RULES[self.width_rule](start.x)
+        if self.cameras is None:  # Table 4's kernel stage (from the previous answer, warm)
+            self.result_ = reconstruct(
+                W, vis, prior="kernel", tau=float(self.tau), width=gamma, start=previous or start, **options
+            )
+        else:
+            if self.depth_scale is not None:  # the cameras are fixed: L-BFGS in their frames
+                options["variables"] = CameraFrameVariables(self.cameras, vis, self.depth_scale)
+            term, X0 = OrthographicReprojection(W, self.cameras, vis), (previous or start).x
+            arguments = solver_arguments(options)
+            self.result_ = minimize_regularized(term, X0, gamma=gamma, tau=float(self.tau), **arguments)
+        self.visible_, self.fitted_width_ = vis, self.width_multiple
+        self.move_ = float(np.linalg.norm(self.result_.x - start.x) / np.linalg.norm(start.x))
+        return self
+
+    def _start(self, W, vis):
+        if not isinstance(self.start, Mapping):
+            return self.start
+        options = dict(self.start)
+        if self.cameras is not None:
+            return trace_norm_heuristic(W, self.cameras, vis, **options)
+        R0 = initialize_cameras(W, vis)
+        return reconstruct(W, vis, prior="tnh", tau=options.pop("tau"), initial_cameras=R0, **options)
+
+    def transform(self, X):
+        """The reprojections (F, 2P) of the fit (whatever X: the fit's own tracks are completed)."""
+        res = self.result_
+        R = self.cameras if self.cameras is not None and self.prior == "kernel" else res.R
+        return (R @ res.x.reshape(R.shape[0], 3, -1)).reshape(R.shape[0], -1)
+
+
+def _search(W, mask, folds, estimator, grid, n_jobs, **options) -> HoldoutSearch:
+    """HoldoutSearch of ``estimator`` over ``grid`` on the tracks (NaN at unobserved points)."""
+    X = np.where(_entries(mask), W, np.nan)
+    search = HoldoutSearch(
+        estimator, grid, folds=[_entries(h) for h in folds], scoring=_point_error, refit=False,
+        n_jobs=n_jobs, **options,
+    )  # fmt: skip
+    return search.fit(X)
+
+
+def _table(search, names) -> pd.DataFrame:
+    """cv_results_ of a search as a DataFrame: ``names``, ``mean_test_error``, ``std_test_error``,
+    ``fit_time`` and the rule's columns."""
+    r = search.cv_results_
+    out = pd.DataFrame({name: np.asarray(r[f"param_{name}"], dtype=np.float64) for name in names})
+    out["mean_test_error"], out["std_test_error"] = r["mean_test_error"], r["std_test_error"]
+    out["fit_time"] = r["mean_fit_time"]
+    for extra in ("max_move", "active", "mean_diff_reference", "se_diff_reference"):
+        if extra in r:
+            out[extra] = r[extra]
+    return out
+
+
 # --------------------------------------------------------------------------------------------------
 # TNH's tau with estimated cameras (Table 4)
 # --------------------------------------------------------------------------------------------------
@@ -148,7 +290,7 @@ class TNHTauSelection:
     cv_results_ : DataFrame
         One row per candidate, by tau: ``tau, mean_test_error`` (mean over folds of the mean squared
         reprojection error of the hidden points, unit of the tracks squared), ``std_test_error``
-        (sample sd over folds), ``fit_time`` (mean CPU seconds of one fold solve).
+        (sample sd over folds), ``fit_time`` (mean seconds of one fold solve).
     result_ : Reconstruction
         TNH with estimated cameras at ``tau_`` on every observed point, from ``rigid_cameras_``
         (:func:`~nldr.nrsfm.reconstruct`).
@@ -156,8 +298,8 @@ class TNHTauSelection:
         Rigid factorisation of every observed point (the refit's start).
     folds_ : list of bool arrays, shape (F, P)
         The hidden points of each fold.
-    fold_results_ : list of Reconstruction
-        Each fold's solve at ``tau_`` (start of :func:`select_kernel`'s folds).
+    options_ : dict
+        The alternation's options of the folds and the refit (:func:`select_kernel`'s fold starts).
     refit_time_ : float
         CPU seconds of the refit alone (rigid factorisation and one alternation): the cost of one solve.
     """
@@ -167,25 +309,12 @@ class TNHTauSelection:
     result_: Reconstruction
     rigid_cameras_: np.ndarray
     folds_: list
-    fold_results_: list
+    options_: dict
     refit_time_: float
 
     def __repr__(self) -> str:
         n, k = len(self.cv_results_), len(self.folds_)
         return f"TNHTauSelection(tau_={self.tau_:.4g}, candidates={n}, folds={k})"
-
-
-def _tnh_fold(W2d, train, hidden, taus, options):
-    with threadpool_limits(1):
-        R0 = initialize_cameras(W2d, train)
-        rows, results = [], []
-        for tau in taus:
-            start = time.process_time()
-            res = reconstruct(W2d, train, prior="tnh", tau=float(tau), initial_cameras=R0, **options)
-            error = reprojection_error(W2d, hidden, res.R, res.x, mean=True)
-            rows.append({"tau": float(tau), "test_error": error, "fit_time": time.process_time() - start})
-            results.append(res)
-        return rows, results
 
 
 def select_tnh_tau(
@@ -203,12 +332,11 @@ def select_tnh_tau(
     """Choose TNH's tau for NRSfM with unknown cameras by hold-out reprojection error.
 
     Per fold: rigid factorisation of the training points
-    (:func:`~nldr.nrsfm.factorization.initialize_cameras`), then for every tau
-    TNH with estimated cameras from those cameras (:func:`~nldr.nrsfm.reconstruct` with
-    ``prior="tnh"``: a cold start, to convergence), scored on the fold's hidden points. The chosen tau
-    is refitted on every observed point from the rigid cameras of all of them: exactly one evaluation
-    of Table 4's oracle search (then the camera search, with ``camera_search``, as Table 4 does at
-    its tau*).
+    (:func:`~nldr.nrsfm.factorization.initialize_cameras`), then for every tau TNH with estimated
+    cameras from those cameras (:func:`~nldr.nrsfm.reconstruct` with ``prior="tnh"``: a cold start, to
+    convergence), scored on the fold's hidden points. The tau of smallest mean score is refitted on
+    every observed point from the rigid cameras of all of them: exactly one evaluation of Table 4's
+    oracle search (then the camera search, with ``camera_search``, as Table 4 does at its tau*).
 
     Parameters
     ----------
@@ -237,23 +365,219 @@ def select_tnh_tau(
     n_jobs = check_count(n_jobs, "n_jobs")
     taus = positive_grid(DEFAULT_TNH_TAUS if taus is None else taus, "taus")
     folds = visibility_folds(mask, n_folds, random_state, holdout_fraction=holdout_fraction)
-    W2d = W  # zeros where unobserved
-    per_fold = run_jobs([(_tnh_fold, (W2d, mask & ~h, h, taus, alternation_options)) for h in folds], n_jobs)
-    cv = summarise_folds([row for rows, _ in per_fold for row in rows], ["tau"])
-    best = int(np.argmin(cv["mean_test_error"].to_numpy()))
-    tau = float(cv["tau"].iloc[best])
+    estimator = _Tracks(prior="tnh", options=dict(alternation_options))
+    search = _search(W, mask, folds, estimator, {"tau": taus.tolist()}, n_jobs)
+    tau = float(search.best_params_["tau"])
     start = time.process_time()
-    R0 = initialize_cameras(W2d, mask)
+    R0 = initialize_cameras(W, mask)
     result = reconstruct(
-        W2d,
-        mask,
-        prior="tnh",
-        tau=tau,
-        initial_cameras=R0,
-        camera_search=camera_search,
-        **alternation_options,
+        W, mask, prior="tnh", tau=tau, initial_cameras=R0, camera_search=camera_search, **alternation_options
     )
     refit_time = time.process_time() - start
-    k = int(np.flatnonzero(taus == tau)[0])
-    fold_results = [results[k] for _, results in per_fold]
-    return TNHTauSelection(tau, cv, result, R0, folds, fold_results, refit_time)
+    cv = _table(search, ["tau"])
+    return TNHTauSelection(tau, cv, result, R0, folds, dict(alternation_options), refit_time)
+
+
+# --------------------------------------------------------------------------------------------------
+# The kernel regularizer's tau and width (Tables 3 and 4)
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(repr=False)
+class KernelSelection:
+    """Outcome of :func:`select_kernel`.
+
+    Attributes
+    ----------
+    tau_ : float
+        The chosen trace-norm weight.
+    width_multiple_ : float
+        The chosen multiple of the width rule's gamma.
+    gamma_ : float
+        ``width_multiple_`` times the rule on the refit's start shapes (1 / unit of the tracks squared).
+    cv_results_ : DataFrame
+        One row per candidate, by width multiple then tau: ``tau, width_multiple, mean_test_error``
+        (mean squared hidden reprojection error, unit of the tracks squared), ``std_test_error``,
+        ``fit_time`` (mean seconds per fold solve; warm-started candidates are cheaper),
+        ``max_move`` (largest relative change of the start shapes over the folds), ``active``
+        (``max_move >= min_move``); with ``rule="reference"`` also ``mean_diff_reference`` and
+        ``se_diff_reference``: mean and standard error over folds of the score minus the
+        reference's score in the same fold.
+    result_ : RegularizerResult or Reconstruction
+        The refit on every observed point: the regularizer with the known cameras, or (after
+        :func:`select_tnh_tau`) Table 4's kernel stage, which also has cameras ``R``.
+    fold_scores_ : DataFrame, shape (n_folds, n_candidates)
+        Hold-out score of every candidate (columns: (width_multiple, tau), as the rows of
+        ``cv_results_``) in every fold (rows): the paired values behind ``rule="reference"``.
+    folds_ : list of bool arrays, shape (F, P)
+    start_ : (R, X)
+        Cameras (F, 2, 3) and shapes (F, 3P) the refit started from.
+    refit_time_ : float
+        CPU seconds of the refit's kernel solve alone: the cost of one solve.
+    """
+
+    tau_: float
+    width_multiple_: float
+    gamma_: float
+    cv_results_: pd.DataFrame
+    fold_scores_: pd.DataFrame
+    result_: object
+    folds_: list
+    start_: tuple
+    refit_time_: float
+
+    def __repr__(self) -> str:
+        return (
+            f"KernelSelection(tau_={self.tau_:.4g}, width_multiple_={self.width_multiple_:g}, "
+            f"gamma_={self.gamma_:.4g}, candidates={len(self.cv_results_)})"
+        )
+
+
+def select_kernel(
+    W2d,
+    mask=None,
+    *,
+    R=None,
+    tnh: TNHTauSelection | None = None,
+    taus=None,
+    width_multiples=None,
+    width_rule: str = "d_med",
+    n_folds: int = 3,
+    holdout_fraction: float | None = None,
+    random_state=0,
+    warm_start: bool = True,
+    rule: str = "reference",
+    reference=PAPER_KERNEL,
+    min_move: float = MIN_MOVE,
+    tnh_options: Mapping | None = None,
+    X_start=None,
+    camera_options: Mapping | None = None,
+    depth_scale: float | None = None,
+    n_jobs: int = 1,
+    **regularizer_options,
+) -> KernelSelection:
+    """Choose the kernel regularizer's tau and width for NRSfM by hold-out reprojection error.
+
+    Give exactly one of ``R`` (known cameras, Table 3) or ``tnh`` (a :func:`select_tnh_tau` result,
+    Table 4). Candidate gammas are ``width_multiples`` times the ``width_rule`` on each fold's start
+    shapes, so the chosen quantity is the multiple; the refit applies it to its own start.
+
+    Parameters
+    ----------
+    W2d : array, shape (F, 2P)
+        Centred image tracks as rows.
+    mask : bool array, shape (F, P), optional
+        Visibility; default all observed. With ``tnh``, must be the mask it was selected on.
+    R : array, shape (F, 2, 3), optional
+        Known cameras. Each fold (and the refit) starts from the exact-fit TNH of its training points
+        (:func:`~nldr.nrsfm.trace_norm_heuristic` with ``tnh_options``).
+    tnh : TNHTauSelection, optional
+        Unknown cameras: its folds are reused, each fold starts from that fold's TNH (cameras and shapes)
+        at the selected tau; every fold solve and the refit (from ``tnh.result_``) optimise cameras and
+        shapes jointly (:func:`~nldr.nrsfm.reconstruct`, the fold solves from one start each, the refit
+        with ``camera_options``, e.g. ``multistart``).
+    taus : sequence of float > 0, optional
+        Default :data:`DEFAULT_KERNEL_TAUS`.
+    width_multiples : sequence of float > 0, optional
+        Default :data:`WIDTH_MULTIPLES`.
+    width_rule : {"d_med", "d_max"}, default "d_med"
+        The paper's rule the multiples scale (:data:`~nldr.nrsfm.reconstruct.WIDTH_RULES`).
+    n_folds, holdout_fraction, random_state
+        Folds of :func:`visibility_folds` (known cameras only; ``tnh`` brings its own).
+    warm_start : bool, default True
+        Solve each (fold, width) along tau, smallest first, warm-starting with the last penalty stage.
+    rule : {"reference", "min"}, default "reference"
+        HoldoutSearch's rule over the eligible candidates. "min": the smallest mean hold-out error.
+        "reference": the ``reference`` candidate, unless candidates beat it by more than one standard
+        error of their per-fold (paired) score differences from it; then the one of those with the
+        smallest mean. The hold-out score of 2D points separates the candidates by a few percent,
+        less than its spread over folds (docs/REPRODUCTION.md#selection-nrsfm), so "min" follows
+        the noise; "reference" leaves a default only on evidence.
+    reference : (tau, width_multiple), default :data:`PAPER_KERNEL`
+        The default of ``rule="reference"`` (the paper's tau and width rule); must be on the grid.
+    min_move : float >= 0, default :data:`MIN_MOVE`
+        A candidate whose solve moved the start shapes by less than ``min_move`` (relative Frobenius
+        norm) in every fold is inactive and not eligible: the regularizer did not act, so its score
+        is the start method's (TNH), not the kernel method's. All candidates are eligible if none is
+        active.
+    tnh_options : mapping, optional
+        Options of the known-camera TNH (default: exact fit by ADMM).
+    X_start : array, shape (F, 3P), optional
+        With ``R``: the refit's start, the TNH on every observed point with ``tnh_options``, when the
+        caller has it already (default: computed here).
+    depth_scale : float > 0, optional
+        With ``R``, run the fold solves and the refit in :class:`~nldr.nrsfm.CameraFrameVariables`
+        with this scale: the same minimisers, far fewer L-BFGS iterations
+        (docs/REPRODUCTION.md#table-3-solver). Default: L-BFGS on the shapes themselves.
+    n_jobs : int >= 1
+        Processes over the folds.
+    **regularizer_options
+        Passed to :func:`~nldr.regularizer.minimize_regularized` (``rho0, rho_growth, rho_max, center,
+        max_inner, ...``) in the folds and the refit.
+
+    Returns
+    -------
+    KernelSelection
+        Ties go to the first row of ``cv_results_`` (smaller width multiple, then smaller tau).
+    """
+    W, mask = check_tracks(W2d, mask)
+    if (R is None) == (tnh is None):
+        raise ValueError("give exactly one of R (known cameras) or tnh (a select_tnh_tau result)")
+    if width_rule not in WIDTH_RULES:
+        raise ValueError(f"width_rule must be one of {tuple(WIDTH_RULES)}; got {width_rule!r}")
+    for key in ("gamma", "tau"):
+        if key in regularizer_options:
+            raise ValueError(f"regularizer option {key!r} is set by select_kernel; remove it")
+    if "variables" in regularizer_options:
+        raise ValueError("regularizer option 'variables' is set by select_kernel (use depth_scale)")
+    if depth_scale is not None:
+        depth_scale = check_positive(depth_scale, "depth_scale")
+    n_jobs = check_count(n_jobs, "n_jobs")
+    taus = positive_grid(DEFAULT_KERNEL_TAUS if taus is None else taus, "taus")
+    multiples = WIDTH_MULTIPLES if width_multiples is None else width_multiples
+    multiples = positive_grid(multiples, "width_multiples")
+    if rule not in ("reference", "min"):
+        raise ValueError(f"rule must be 'reference' or 'min'; got {rule!r}")
+    search_rule = {"rule": rule}
+    if rule == "reference":
+        if np.shape(reference) != (2,):
+            raise ValueError(f"reference must be a pair (tau, width_multiple); got {reference!r}")
+        search_rule["reference"] = {"tau": float(reference[0]), "width_multiple": float(reference[1])}
+    if R is not None:
+        R = check_cameras(R, mask.shape[0])
+        tnh_options = dict(tnh_options or {})
+        folds = visibility_folds(mask, n_folds, random_state, holdout_fraction=holdout_fraction)
+        start, fold_options = tnh_options, dict(regularizer_options)
+    else:
+        if tnh.folds_[0].shape != mask.shape or np.any(tnh.folds_[0] & ~mask):
+            raise ValueError("tnh was selected on another mask; pass the mask of select_tnh_tau")
+        folds, start = tnh.folds_, {"tau": tnh.tau_, **tnh.options_}
+        fold_options = {"multistart": False, **regularizer_options}  # the fold solves: one start each
+    estimator = _Tracks(
+        width_rule=width_rule, cameras=R, start=start, options=fold_options, depth_scale=depth_scale
+    )
+    grid = [{"width_multiple": [float(m)], "tau": taus.tolist()} for m in multiples]
+    path = {"path": "tau"} if warm_start else {}
+    search = _search(W, mask, folds, estimator, grid, n_jobs, min_move=min_move, **search_rule, **path)
+    cv = _table(search, ["tau", "width_multiple"])
+    columns = pd.MultiIndex.from_arrays([cv["width_multiple"], cv["tau"]], names=["width_multiple", "tau"])
+    splits = [search.cv_results_[f"split{k}_test_error"] for k in range(len(folds))]
+    scores = pd.DataFrame(np.array(splits), columns=columns).rename_axis(index="fold")
+    best = search.best_params_
+    if R is not None:  # the refit from the TNH of every observed point
+        X0 = trace_norm_heuristic(W, R, mask, **tnh_options).x if X_start is None else X_start
+        X0 = np.asarray(X0, dtype=np.float64)
+        if X0.shape != (mask.shape[0], 3 * mask.shape[1]):
+            raise ValueError(f"X_start must have shape (F, 3P) = {(mask.shape[0], 3 * mask.shape[1])}")
+        refit = estimator.set_params(start=SimpleNamespace(x=X0), **best)
+    else:  # from the TNH refit, with camera_options
+        options = {**dict(camera_options or {}), **regularizer_options}
+        refit = estimator.set_params(start=tnh.result_, options=options, **best)
+    begin = time.process_time()
+    refit.fit(np.where(_entries(mask), W, np.nan))
+    seconds = time.process_time() - begin
+    start = (R if R is not None else tnh.result_.R, refit.start_.x)
+    return KernelSelection(
+        float(best["tau"]), float(best["width_multiple"]), refit.gamma_, cv, scores, refit.result_, folds,
+        start, seconds,
+    )  # fmt: skip
