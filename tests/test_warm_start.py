@@ -170,3 +170,20 @@ def test_every_method_lists_its_options_when_one_is_unknown(problem):
         minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, method="nystroem", options=options)
     with pytest.raises(ValueError, match="options must be a mapping"):
         minimize_regularized(term, S0, gamma=GAMMA, tau=TAU, options=[("tol", 1e-8)])
+
+
+def test_last_stage_only_keeps_the_full_schedules_units_and_copies():
+    from nldr._options import last_stage_only
+
+    full = {"rho0": 4.0, "rho_growth": 10.0, "rho_max": 400.0, "options": {"tol": 1e-8}, "method": "exact"}
+    last = last_stage_only(full)
+    assert last == {
+        "rho0": 400.0, "rho_growth": 10.0, "rho_max": 400.0, "method": "exact",
+        "options": {"tol": 1e-8, "scale": 2.0},
+    }  # fmt: skip
+    assert full["options"] == {"tol": 1e-8} and full["rho0"] == 4.0  # the input is not changed
+    # a scale the caller set wins; absent keys take the caller's defaults
+    assert last_stage_only({"options": {"scale": 3.0}})["options"]["scale"] == 3.0
+    defaults = last_stage_only({}, rho0=9.0, rho_max=10.0)
+    assert defaults == {"rho0": 10.0, "rho_max": 10.0, "options": {"scale": 3.0}}
+

@@ -23,7 +23,14 @@ __all__ = [
     "METHODS",
     "solver_options",
     "merge_solver_kwargs",
+    "last_stage_only",
+    "DEFAULT_RHO0",
+    "DEFAULT_RHO_MAX",
 ]
+
+#: :func:`nldr.regularizer.minimize_regularized`'s default first and last penalty weights
+DEFAULT_RHO0 = 1.0
+DEFAULT_RHO_MAX = 1e4
 
 
 def _check_flag(value, name: str) -> bool:
@@ -204,3 +211,39 @@ def merge_solver_kwargs(*kwargs: Mapping | None) -> dict:
         if options:
             merged["options"] = options
     return merged
+
+
+def last_stage_only(
+    kwargs: Mapping, *, rho0: float = DEFAULT_RHO0, rho_max: float = DEFAULT_RHO_MAX
+) -> dict:
+    """:func:`nldr.regularizer.minimize_regularized`'s keyword arguments for the last penalty stage
+    alone, with the stopping tests in the units of the full schedule.
+
+    A warm start (a path of taus or widths, each solve starting from its neighbour's answer) skips
+    the early stages, whose only purpose is to reach the neighbourhood of a minimiser from a poor
+    start. Solving ``rho0 = rho_max`` alone would also move the stopping tests' length unit, which
+    defaults to ``sqrt(rho0)``; so the unit is pinned to the full schedule's, ``options["scale"] =
+    sqrt(rho0)``, unless ``options`` already sets it.
+
+    Parameters
+    ----------
+    kwargs : mapping
+        The full schedule's keyword arguments (``rho0``, ``rho_max``, ``options``, and any others,
+        passed through).
+    rho0, rho_max : float
+        The values of ``rho0`` and ``rho_max`` when ``kwargs`` does not set them (the caller's
+        defaults; :func:`~nldr.regularizer.minimize_regularized`'s are 1 and 1e4).
+
+    Returns
+    -------
+    dict
+        A copy of ``kwargs`` with ``rho0 = rho_max = rho_max`` and ``options["scale"]`` set; the
+        ``options`` mapping is copied, never changed in place.
+    """
+    out = dict(kwargs)
+    first = float(out.get("rho0", rho0))
+    last = float(out.get("rho_max", rho_max))
+    options = dict(out.get("options") or {})
+    options.setdefault("scale", float(np.sqrt(first)))
+    out.update(rho0=last, rho_max=last, options=options)
+    return out

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 from sklearn.utils import check_random_state
 
-from .._options import ExactOptions, solver_options
+from .._options import ExactOptions, last_stage_only, solver_options
 from .._threads import blas_threads_for
 from .._validation import check_count, check_positive
 from ..baselines._masked import mean_fill, observed_column_means
@@ -251,12 +251,8 @@ class KernelRegularizerImputer(MaskedImputerBase):
             options["landmark_seed"] = int(
                 check_random_state(self.random_state).randint(np.iinfo(np.int32).max)
             )
-        if warm:
-            rho0 = float(schedule.get("rho0", _DEFAULT_SCHEDULE["rho0"]))
-            rho_max = float(schedule.get("rho_max", _DEFAULT_SCHEDULE["rho_max"]))
-            options.setdefault("scale", float(np.sqrt(rho0)))
-            schedule.update(rho0=rho_max, rho_max=rho_max)
-        return method, {"method": method, "options": options, "verbose": bool(self.verbose), **schedule}
+        kwargs = {"method": method, "options": options, "verbose": bool(self.verbose), **schedule}
+        return method, last_stage_only(kwargs, **_DEFAULT_SCHEDULE) if warm else kwargs
 
     def _solve(self, W, mask):
         gamma, tau = self._check_params()
