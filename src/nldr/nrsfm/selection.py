@@ -39,6 +39,7 @@ import pandas as pd
 from sklearn.base import BaseEstimator, TransformerMixin
 
 from .._cv import positive_grid
+from .._options import last_stage_only
 from .._validation import check_count, check_positive
 from ..model_selection import HoldoutSearch
 from ..regularizer import minimize_regularized
@@ -215,11 +216,8 @@ class _Tracks(TransformerMixin, BaseEstimator):
         start, previous = self.start_, self.result_ if warm else None
         if previous is not None and self.width_multiple != self.fitted_width_:
             previous = None  # another width: from the start, with the full schedule
-        if previous is not None:  # the last stage alone (known cameras: in the full schedule's units)
-            rho_max = options.get("rho_max", 1e4 if self.cameras is not None else 10.0)
-            if self.cameras is not None:
-                options = {"scale": float(np.sqrt(options.get("rho0", 1.0))), **options}
-            options.update(rho0=rho_max, rho_max=rho_max)
+        if previous is not None and self.cameras is None:  # the last stage alone
+            options.update(rho0=options.get("rho_max", 10.0), rho_max=options.get("rho_max", 10.0))
         self.gamma_ = gamma = float(self.width_multiple) * WIDTH_RULES[self.width_rule](start.x)
         if self.cameras is None:  # Table 4's kernel stage (from the previous answer, warm)
             self.result_ = reconstruct(
@@ -230,6 +228,8 @@ class _Tracks(TransformerMixin, BaseEstimator):
                 options["variables"] = CameraFrameVariables(self.cameras, vis, self.depth_scale)
             term, X0 = OrthographicReprojection(W, self.cameras, vis), (previous or start).x
             arguments = solver_arguments(options)
+            if previous is not None:  # the last stage alone, in the full schedule's units
+                arguments = last_stage_only(arguments)
             self.result_ = minimize_regularized(term, X0, gamma=gamma, tau=float(self.tau), **arguments)
         self.visible_, self.fitted_width_ = vis, self.width_multiple
         self.move_ = float(np.linalg.norm(self.result_.x - start.x) / np.linalg.norm(start.x))
