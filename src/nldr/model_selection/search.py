@@ -21,11 +21,10 @@ from threadpoolctl import threadpool_limits
 from .._cv import run_jobs, say, summarise_folds
 from .._validation import check_count, check_positive
 from .folds import SCORES, fold_score, holdout_folds
+from .rules import RULES, choose, reference_index
 
 __all__ = ["HoldoutSearch", "EntryFolds", "RULES"]
 
-#: Choice rules of :class:`HoldoutSearch`.
-RULES = ("min", "one_se", "reference")
 
 
 class EntryFolds:
@@ -169,37 +168,6 @@ def _fold_job(estimator, candidates, fold_params, fold, X, path, stop, scoring, 
 
 def _said(verbose, label, params, row) -> None:
     say(verbose, "HoldoutSearch", f"{label}{params}: error {row['test_error']:.5g} ({row['fit_time']:.2f} s)")
-
-
-def _choose(mean, std, n_folds, rule, prefer, candidates, eligible=None, reference=None, paired=None) -> int:
-    """Index chosen by ``rule`` among the eligible candidates with a finite mean error.
-
-    ``eligible`` (bool per candidate, default all) restricts every rule; if no candidate with a finite
-    mean is eligible, all of those are. ``rule="reference"``: ``reference`` is the index of the
-    default and ``paired`` the (mean, standard error) over folds of each candidate's error minus the
-    reference's in the same fold; the reference is kept unless eligible candidates have
-    ``mean + se < 0``, and then the one of those with the smallest mean error is chosen.
-    """
-    finite = np.isfinite(mean)
-    allowed = finite if eligible is None else finite & np.asarray(eligible, dtype=bool)
-    if not allowed.any():
-        allowed = finite
-    if rule == "reference":
-        diff, se = paired
-        better = allowed & np.isfinite(diff) & np.isfinite(se) & (diff + se < 0)
-        if not better.any():
-            return int(reference)
-        return int(np.flatnonzero(better)[np.argmin(mean[better])])
-    idx = np.flatnonzero(allowed)
-    best = int(idx[np.argmin(mean[idx])])
-    if rule == "min":
-        return best
-    close = idx[mean[idx] <= mean[best] + std[best] / np.sqrt(n_folds)]
-    for name in prefer:
-        key, sign = (name[1:], -1.0) if name.startswith("-") else (name, 1.0)
-        values = np.array([sign * float(candidates[i][key]) for i in close])
-        close = close[values == values.min()]
-    return int(close[np.argmin(mean[close])])
 
 
 class HoldoutSearch(TransformerMixin, BaseEstimator):
@@ -391,28 +359,6 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
                 raise ValueError(f"prefer: {name.lstrip('-')!r} is not a parameter of every candidate")
         return candidates
 
-    def _reference_index(self, candidates) -> int | None:
-        """Index of the ``reference`` candidate (``rule="reference"``), None for the other rules."""
-        if self.rule != "reference":
-            if self.reference is not None:
-                raise ValueError(f"reference is the default of rule='reference'; got rule={self.rule!r}")
-            return None
-        if not isinstance(self.reference, Mapping) or not self.reference:
-            raise ValueError(f"rule='reference' needs reference, a dict of a candidate's parameters; got "
-                             f"{self.reference!r}")
-
-        def same(a, b):
-            if isinstance(a, (int, float, np.number)) and isinstance(b, (int, float, np.number)):
-                return bool(np.isclose(float(a), float(b)))
-            return a == b
-
-        ref = dict(self.reference)
-        hits = [k for k, c in enumerate(candidates)
-                if set(c) == set(ref) and all(same(c[n], ref[n]) for n in ref)]  # fmt: skip
-        if len(hits) != 1:
-            raise ValueError(f"reference {ref} must be one candidate of param_grid; it is {len(hits)}")
-        return hits[0]
-
     def _check_options(self):
         if self.rule not in RULES:
             raise ValueError(f"rule must be one of {RULES}; got {self.rule!r}")
@@ -469,7 +415,7 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
             raise ValueError("X has infinite entries; mark missing entries with NaN")
         self._check_options()
         candidates = self._candidates()
-        reference = self._reference_index(candidates)
+        reference = reference_index(candidates, self.rule, self.reference)
         folds = self._folds(X)
         stop = np.inf if self.stop_factor is None else float(self.stop_factor)
         fold_params = dict(self.fold_params or {})
@@ -499,7 +445,7 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
             )
         r = self.cv_results_
         paired = None if reference is None else (r["mean_diff_reference"], r["se_diff_reference"])
-        self.best_index_ = _choose(
+        self.best_index_ = choose(
             mean, r["std_test_error"], len(folds), self.rule, self.prefer, candidates, r.get("active"),
             reference, paired,
         )  # fmt: skip

@@ -26,6 +26,7 @@ Every solver result derives from :class:`nldr.result.SolverResult` (``x``, ``fun
 
 from .factorization import initialize_cameras
 from .joint_kernel import kernel_energy
+from .kernel_selection import KernelSelection, select_kernel
 from .layout import (
     cameras_from_stack,
     cameras_to_stack,
@@ -44,7 +45,7 @@ from .metrics import (
 )
 from .reconstruct import Reconstruction, reconstruct
 from .reprojection import OrthographicReprojection, reprojection_error, tnh_energy
-from .selection import KernelSelection, TNHTauSelection, select_kernel, select_tnh_tau, visibility_folds
+from .selection import TNHTauSelection, select_tnh_tau, visibility_folds
 from .tnh import TNHResult, TNHSolveError, trace_norm_heuristic
 from .variables import CameraFrameVariables
 

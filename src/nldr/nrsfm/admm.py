@@ -97,13 +97,20 @@ from .reprojection import OrthographicReprojection
 from .svt import soft_threshold_singular_values_gram
 from .tnh_result import TNHResult, fit_summary
 
-__all__ = ["solve_admm", "check_admm_options", "balancing_factor", "track_scale", "options_record"]
+__all__ = [
+    "solve_admm",
+    "check_admm_options",
+    "balancing_factor",
+    "track_scale",
+    "options_record",
+    "ADAPT_MAX_CHANGES",
+]
 
 _RCOND = 1e-10  # relative cut-off of camera singular values in the pseudo-inverse
 _ADAPT_EVERY = 10  # iterations between residual-balancing checks
 _ADAPT_MU = 2.0  # balance when one relative residual exceeds mu times the other
 _ADAPT_FACTOR = 2.0
-_ADAPT_MAX_CHANGES = 50
+ADAPT_MAX_CHANGES = 50
 _FEASIBILITY_RTOL = 1e-9  # exact-fit residual tolerance (relative to the track scale) of a singular camera
 
 
@@ -356,7 +363,7 @@ def _iterate(feasible: _ExactFitSet, Z, U, beta, alpha, tol, max_iter, adaptive,
             if gap <= tol * nuclear:
                 status = CONVERGED
                 break
-        if adaptive and changes < _ADAPT_MAX_CHANGES:
+        if adaptive and changes < ADAPT_MAX_CHANGES:
             factor = balancing_factor(r_rel, s_rel)
             if factor is None:
                 continue

@@ -62,7 +62,7 @@ import numpy as np
 
 from .._validation import as_float_matrix, check_positive
 from ..result import CONVERGED, MAX_ITER
-from .admm import _ADAPT_MAX_CHANGES, balancing_factor, check_admm_options, options_record, track_scale
+from .admm import ADAPT_MAX_CHANGES, balancing_factor, check_admm_options, options_record, track_scale
 from .reprojection import OrthographicReprojection
 from .svt import soft_threshold_singular_values_gram
 from .tnh_result import TNHResult, fit_summary
@@ -294,7 +294,7 @@ class _L1Problem:
             if gap <= tol * primal:
                 status = CONVERGED
                 break
-            if adaptive and changes < _ADAPT_MAX_CHANGES:
+            if adaptive and changes < ADAPT_MAX_CHANGES:
                 r = np.sqrt(np.sum((X - Z) ** 2) + np.sum((AX + e - b) ** 2 * obs))
                 r_rel = r / max(np.linalg.norm(X), np.linalg.norm(Z), self.b_norm, 1e-300)
                 s = beta * np.linalg.norm(self.back(e - e_old) - (Z - Z_old))
