@@ -10,7 +10,7 @@ from sklearn.experimental import enable_iterative_imputer  # noqa: F401
 from sklearn.impute import IterativeImputer, KNNImputer, SimpleImputer
 
 from nldr.model_selection import EntryFolds, HoldoutSearch, holdout_folds
-from nldr.model_selection.search import _choose
+from nldr.model_selection.rules import choose as _choose
 
 
 def data(n=30, d=5, p=0.2, seed=0):
@@ -265,3 +265,88 @@ def test_derive_sets_parameters_from_each_fits_own_training_matrix():
     assert search.best_estimator_.scale == 1.0
     folds = holdout_folds(~np.isnan(W), 3, 0)
     assert seen == [int(np.isnan(W).sum() + f.sum()) for f in folds] + [int(np.isnan(W).sum())]
+
+
+class Moved(Fill):
+    """Fill that reports how far it moved from scale 1 (``move_``), as a method started elsewhere does."""
+
+    def fit(self, X, y=None):
+        super().fit(X)
+        self.move_ = abs(float(self.scale) - 1.0)
+        return self
+
+
+def test_reference_rule_and_min_move_are_the_brute_force_choice_from_the_fold_errors():
+    _, W = data(n=40, d=6, p=0.3, seed=5)
+    W = W + 3.0  # column means away from zero: the fill's scale matters
+    scales = [0.5, 0.9, 1.0, 1.02, 1.1, 1.5]
+    folds = holdout_folds(~np.isnan(W), 4, 1)
+    # by hand: every fold error, the paired differences from the reference, the eligible candidates
+    errors = np.empty((4, len(scales)))
+    for k, hidden in enumerate(folds):
+        train = np.where(hidden, np.nan, W)
+        for c, scale in enumerate(scales):
+            filled = np.where(np.isnan(train), np.nanmean(train, axis=0) * scale, train)
+            errors[k, c] = np.mean((filled - W)[hidden] ** 2)
+    ref = scales.index(1.1)  # a default that 1.0 and 1.02 beat, but both move less than 0.05
+    diff = errors - errors[:, [ref]]
+    se = np.array([np.sqrt(np.sum((d - d.mean()) ** 2) / 3) / 2 for d in diff.T])  # sd / sqrt(4)
+    chosen = []
+    for min_move in (None, 0.05, 10.0):
+        active = [True] * 6 if min_move is None else [abs(s - 1) >= min_move for s in scales]
+        eligible = active if any(active) else [True] * 6
+        better = [c for c in range(6) if eligible[c] and diff[:, c].mean() + se[c] < 0]
+        expected = ref if not better else min(better, key=lambda c: (errors[:, c].mean(), c))
+        search = HoldoutSearch(Moved(), {"scale": scales}, folds=folds, rule="reference",
+                               reference={"scale": 1.1}, min_move=min_move, refit=False).fit(W)  # fmt: skip
+        r = search.cv_results_
+        np.testing.assert_allclose(r["mean_diff_reference"], diff.mean(axis=0), rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(r["se_diff_reference"], se, rtol=1e-12, atol=1e-15)
+        assert search.best_index_ == expected, (min_move, better)
+        chosen.append(expected)
+        if min_move is not None:
+            np.testing.assert_allclose(r["max_move"], [abs(s - 1) for s in scales])
+            assert r["active"].tolist() == active
+        # "min" under the same eligibility: the smallest mean among the eligible
+        plain = HoldoutSearch(Moved(), {"scale": scales}, folds=folds, min_move=min_move, refit=False).fit(W)
+        best = min((c for c in range(6) if eligible[c]), key=lambda c: (errors[:, c].mean(), c))
+        assert plain.best_index_ == best
+    assert ref in chosen and any(c != ref for c in chosen)  # both branches of the rule were exercised
+
+
+def test_choose_reference_keeps_the_default_unless_an_eligible_candidate_beats_it_by_one_paired_se():
+    candidates = [{"a": k} for k in range(4)]
+    mean = np.array([1.0, 0.9, 0.8, 0.7])
+    std = np.zeros(4)
+    paired = (np.array([0.0, -0.1, -0.2, -0.3]), np.array([0.0, 0.05, 0.25, 0.1]))
+    # 1 and 3 beat the reference 0 by more than one SE (2 does not: -0.2 + 0.25 > 0); 3 has the smaller mean
+    assert _choose(mean, std, 4, "reference", (), candidates, None, 0, paired) == 3
+    assert _choose(mean, std, 4, "reference", (), candidates, [True, True, True, False], 0, paired) == 1
+    assert _choose(mean, std, 4, "reference", (), candidates, [True, False, True, False], 0, paired) == 0
+    # nothing eligible: every finite candidate is
+    assert _choose(mean, std, 4, "reference", (), candidates, [False] * 4, 0, paired) == 3
+    assert _choose(mean, std, 4, "min", (), candidates, [True, True, False, False]) == 1
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"rule": "reference"}, "needs reference"),
+        ({"rule": "reference", "reference": {"scale": 3.0}}, "one candidate"),
+        ({"reference": {"scale": 1.0}}, "default of rule='reference'"),
+        ({"min_move": -1.0}, "min_move"),
+        ({"min_move": float("nan")}, "min_move"),
+    ],
+)
+def test_reference_and_min_move_are_checked_before_any_fit(kwargs, match):
+    _, W = data()
+    Fill.fits = 0
+    with pytest.raises(ValueError, match=match):
+        HoldoutSearch(Fill(), {"scale": [1.0, 2.0]}, n_folds=2, **kwargs).fit(W)
+    assert Fill.fits == 0
+
+
+def test_min_move_needs_the_estimators_move():
+    _, W = data()
+    with pytest.raises(ValueError, match="move_"):
+        HoldoutSearch(Fill(), {"scale": [1.0, 2.0]}, n_folds=2, min_move=0.1).fit(W)

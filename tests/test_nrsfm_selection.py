@@ -260,9 +260,12 @@ def test_tnh_scores_are_cold_start_fold_solves_and_cv_beats_an_extreme_tau():
     np.testing.assert_array_equal(ksel.result_.x, by_hand.x)
     np.testing.assert_array_equal(ksel.result_.R, by_hand.R)
     hidden = sel.folds_[0]
+    train = mask & ~hidden  # the fold starts from its TNH at tau_, from its own rigid cameras
+    fold_tnh = reconstruct(W, train, prior="tnh", tau=sel.tau_, initial_cameras=initialize_cameras(W, train),
+                           **ALTERNATION)  # fmt: skip
     fold = reconstruct(
-        W, mask & ~hidden, prior="kernel", tau=1e-4, width=d_med_width(sel.fold_results_[0].x),
-        start=sel.fold_results_[0], multistart=False, **SCHEDULE,
+        W, train, prior="kernel", tau=1e-4, width=d_med_width(fold_tnh.x), start=fold_tnh, multistart=False,
+        **SCHEDULE,
     )  # fmt: skip
     assert ksel.fold_scores_.iloc[0, 0] == pytest.approx(
         holdout_reprojection_error(W, hidden, fold.R, fold.x), rel=1e-12

@@ -21,11 +21,10 @@ from threadpoolctl import threadpool_limits
 from .._cv import run_jobs, say, summarise_folds
 from .._validation import check_count, check_positive
 from .folds import SCORES, fold_score, holdout_folds
+from .rules import RULES, choose, reference_index
 
 __all__ = ["HoldoutSearch", "EntryFolds", "RULES"]
 
-#: Choice rules of :class:`HoldoutSearch`.
-RULES = ("min", "one_se")
 
 
 class EntryFolds:
@@ -99,25 +98,36 @@ class _Fold:
         return estimator.transform(inputs), X[apply], self.hidden[apply]
 
 
-def _solve(estimator, fold, X, scoring, error_score, derive):
-    """Fit one candidate on one fold; (error, estimator, seconds)."""
+def _solve(estimator, fold, X, scoring, error_score, derive, move):
+    """Fit one candidate on one fold; a row ``test_error``, ``fit_time`` (seconds) and, with
+    ``move``, the estimator's ``move_`` (NaN if the fit failed)."""
     start = time.perf_counter()
+    moved = np.nan
     try:
         if derive is not None:
             rows = slice(None) if fold.fit_rows is None else fold.fit_rows
             estimator.set_params(**derive(clone(estimator), _masked(X[rows], fold.hidden[rows])))
         X_hat, X_true, hidden = fold.complete(estimator, X)
         error = _score(scoring, X_true, X_hat, hidden)
+        if move:
+            moved = getattr(estimator, "move_", None)
+            if moved is None:
+                raise ValueError(
+                    f"min_move needs the estimator's fitted attribute move_; {type(estimator).__name__} "
+                    "has none: set min_move=None"
+                )
+            moved = float(moved)
     except Exception:
         if isinstance(error_score, str):
             raise
         error = float(error_score)
-    return error, time.perf_counter() - start
+    row = {"test_error": error, "fit_time": time.perf_counter() - start}
+    return {**row, "move": moved} if move else row
 
 
-def _fold_job(estimator, candidates, fold_params, fold, X, path, stop, scoring, error_score, derive, verbose,
-              label):
-    """Every candidate on one fold: rows (candidate, test_error, fit_time). Along a ``path`` the
+def _fold_job(estimator, candidates, fold_params, fold, X, path, stop, scoring, error_score, derive, move,
+              verbose, label):
+    """Every candidate on one fold: rows (candidate, test_error, fit_time[, move]). Along a ``path`` the
     candidates of one group (same parameters but ``path``) share one warm-started estimator, and the
     first of every group after the first starts from a copy of the previous group's first fit."""
     with threadpool_limits(1):
@@ -125,9 +135,8 @@ def _fold_job(estimator, candidates, fold_params, fold, X, path, stop, scoring, 
         if path is None:
             for k, params in enumerate(candidates):
                 est = clone(estimator).set_params(**params, **fold_params)
-                error, seconds = _solve(est, fold, X, scoring, error_score, derive)
-                rows.append({"candidate": k, "test_error": error, "fit_time": seconds})
-                say(verbose, "HoldoutSearch", f"{label}{params}: error {error:.5g} ({seconds:.2f} s)")
+                rows.append({"candidate": k, **_solve(est, fold, X, scoring, error_score, derive, move)})
+                _said(verbose, label, params, rows[-1])
             return rows
         groups: dict = {}
         for k, params in enumerate(candidates):
@@ -147,29 +156,20 @@ def _fold_job(estimator, candidates, fold_params, fold, X, path, stop, scoring, 
                     est = clone(estimator) if previous_first is None else copy.deepcopy(previous_first)
                     est.set_params(**fold_params, warm_start=previous_first is not None)
                 est.set_params(**params)
-                error, seconds = _solve(est, fold, X, scoring, error_score, derive)
+                row = _solve(est, fold, X, scoring, error_score, derive, move)
                 if warm:
                     est.set_params(warm_start=True)
                     if first is None:
                         first = copy.deepcopy(est)
-                rows.append({"candidate": k, "test_error": error, "fit_time": seconds})
-                lowest = min(lowest, error)
-                say(verbose, "HoldoutSearch", f"{label}{params}: error {error:.5g} ({seconds:.2f} s)")
+                rows.append({"candidate": k, **row})
+                lowest = min(lowest, row["test_error"])
+                _said(verbose, label, params, row)
             previous_first = first
         return rows
 
 
-def _choose(mean, std, n_folds, rule, prefer, candidates) -> int:
-    """Index chosen by ``rule`` among the candidates with a finite mean error."""
-    best = int(np.nanargmin(mean))
-    if rule == "min":
-        return best
-    close = np.flatnonzero(mean <= mean[best] + std[best] / np.sqrt(n_folds))
-    for name in prefer:
-        key, sign = (name[1:], -1.0) if name.startswith("-") else (name, 1.0)
-        values = np.array([sign * float(candidates[i][key]) for i in close])
-        close = close[values == values.min()]
-    return int(close[np.argmin(mean[close])])
+def _said(verbose, label, params, row) -> None:
+    say(verbose, "HoldoutSearch", f"{label}{params}: error {row['test_error']:.5g} ({row['fit_time']:.2f} s)")
 
 
 class HoldoutSearch(TransformerMixin, BaseEstimator):
@@ -211,10 +211,19 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
         each a bool array of X's shape (True: hidden; a subset of the observed entries, not empty), or
         a pair ``(fit_rows, hidden)`` with ``fit_rows`` a bool array (n,), or a triple
         ``(fit_rows, hidden, inputs)`` with ``inputs`` an array (rows not in fit_rows, d) (see above).
-    rule : {"min", "one_se"}, default "min"
+    rule : {"min", "one_se", "reference"}, default "min"
         "min": the smallest mean hold-out error. "one_se": among the candidates within one standard
         error (``std / sqrt(n_folds)``) of the smallest, filtered by ``prefer`` in turn, then the
-        smallest mean error. Ties go to the first candidate.
+        smallest mean error. "reference": the ``reference`` candidate (a default), unless some
+        candidates beat it by more than one standard error of the paired fold differences: with
+        d_k = error_k(candidate) - error_k(reference) in fold k, those with ``mean(d) + sd(d) /
+        sqrt(n_folds) < 0``; then the one of those with the smallest mean error. It leaves a default
+        only on evidence, for scores whose differences between candidates are smaller than their
+        spread over folds but consistent from fold to fold. Every rule chooses among the eligible
+        candidates (``min_move``). Ties go to the first candidate.
+    reference : dict, optional
+        With ``rule="reference"`` (and only then): the default's parameters; exactly one candidate
+        must have them (numbers compared with ``numpy.isclose``).
     prefer : sequence of str, default ()
         The one-SE rule's order of simplicity: parameter names, each keeping its smallest value among
         the remaining candidates ("-name": its largest). The regularizer's is ``("tau", "gamma")``: the
@@ -240,6 +249,12 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
         ``derive(estimator, X_train) -> dict`` of parameters set on each fit just before it from its
         own training matrix (a threshold from a robust scale of a preliminary fit, say); called for
         the fold fits and the refit.
+    min_move : float >= 0, optional
+        For estimators that start from another method's answer and report how far a fit moved from
+        it in the fitted attribute ``move_`` (a float, e.g. the relative change of the estimate): a
+        candidate whose ``move_`` is below ``min_move`` in every fold is inactive and not eligible,
+        since its score is the start's, not the method's. If no candidate is active, all are
+        eligible. None (default): every candidate is eligible and ``move_`` is not read.
     refit : bool, default True
         Refit the chosen candidate on X (``best_estimator_``).
     n_jobs : int >= 1, default 1
@@ -255,7 +270,10 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
         As scikit-learn's ``GridSearchCV`` (``pandas.DataFrame(cv_results_)`` tabulates it), one entry
         per candidate: ``params``, ``param_<name>``, ``split<k>_test_error``, ``mean_test_error``,
         ``std_test_error`` (sample standard deviation over folds), ``rank_test_error``,
-        ``mean_fit_time`` (seconds), ``n_solved`` (folds in which it was solved). Errors, not scores:
+        ``mean_fit_time`` (seconds), ``n_solved`` (folds in which it was solved); with ``min_move``
+        also ``max_move`` (the largest ``move_`` over folds) and ``active``; with
+        ``rule="reference"`` also ``mean_diff_reference`` and ``se_diff_reference`` (mean and
+        standard error over folds of the candidate's error minus the reference's). Errors, not scores:
         lower is better. A candidate with a NaN error in any fold, or not solved in every fold, has NaN
         mean and std and is never chosen.
     best_index_ : int
@@ -292,6 +310,8 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
         path: str | None = None,
         stop_factor: float | None = None,
         derive: Callable | None = None,
+        reference: Mapping | None = None,
+        min_move: float | None = None,
         refit: bool = True,
         n_jobs: int = 1,
         error_score="raise",
@@ -310,6 +330,8 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
         self.path = path
         self.stop_factor = stop_factor
         self.derive = derive
+        self.reference = reference
+        self.min_move = min_move
         self.refit = refit
         self.n_jobs = n_jobs
         self.error_score = error_score
@@ -355,6 +377,10 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
         if not (self.error_score == "raise" or isinstance(self.error_score, (int, float))):
             raise ValueError(f"error_score must be 'raise' or a number; got {self.error_score!r}")
         check_count(self.n_jobs, "n_jobs")
+        if self.min_move is not None:
+            move = float(self.min_move)
+            if not (np.isfinite(move) and move >= 0):
+                raise ValueError(f"min_move must be a finite number >= 0 or None; got {self.min_move!r}")
 
     def _folds(self, X) -> list[_Fold]:
         observed = ~np.isnan(X)
@@ -402,6 +428,7 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
             raise ValueError("X has infinite entries; mark missing entries with NaN")
         self._check_options()
         candidates = self._candidates()
+        reference = reference_index(candidates, self.rule, self.reference)
         folds = self._folds(X)
         stop = np.inf if self.stop_factor is None else float(self.stop_factor)
         fold_params = dict(self.fold_params or {})
@@ -410,7 +437,8 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
             (
                 _fold_job,
                 (self.estimator, candidates, fold_params, fold, X, self.path, stop, self.scoring,
-                 self.error_score, self.derive, self.verbose, f"fold {k + 1}/{len(folds)} "),
+                 self.error_score, self.derive, self.min_move is not None, self.verbose,
+                 f"fold {k + 1}/{len(folds)} "),
             )
             for k, fold in enumerate(folds)
         ]
@@ -419,7 +447,7 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
             say(self.verbose, "HoldoutSearch", f"folds done: {finished}/{total} ({seconds:.1f} s)")
 
         per_fold = run_jobs(jobs, check_count(self.n_jobs, "n_jobs"), done)
-        self._results(candidates, per_fold)
+        self._results(candidates, per_fold, reference)
         self.folds_ = [fold.hidden for fold in folds]
         self.n_splits_ = len(folds)
         mean = self.cv_results_["mean_test_error"]
@@ -428,14 +456,18 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
                 f"every candidate failed: no candidate has a finite hold-out error in all {len(folds)} "
                 "folds (a fit returned NaN or raised); check the estimator on this X"
             )
-        std = self.cv_results_["std_test_error"]
-        self.best_index_ = _choose(mean, std, len(folds), self.rule, self.prefer, candidates)
+        r = self.cv_results_
+        paired = None if reference is None else (r["mean_diff_reference"], r["se_diff_reference"])
+        self.best_index_ = choose(
+            mean, r["std_test_error"], len(folds), self.rule, self.prefer, candidates, r.get("active"),
+            reference, paired,
+        )  # fmt: skip
         self.best_params_ = dict(candidates[self.best_index_])
         self.best_score_ = float(mean[self.best_index_])
         say(self.verbose, "HoldoutSearch", f"chose {self.best_params_} ({self.rule})")
         return X
 
-    def _results(self, candidates, per_fold):
+    def _results(self, candidates, per_fold, reference=None):
         rows = [{**row, "fold": k} for k, fold in enumerate(per_fold) for row in fold]
         frame = pd.DataFrame(rows)
         summary = summarise_folds(rows, ["candidate"]).set_index("candidate").reindex(range(len(candidates)))
@@ -462,6 +494,16 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
         solved = np.zeros(len(candidates), dtype=np.int64)
         np.add.at(solved, frame["candidate"].to_numpy(), 1)
         results["n_solved"] = solved
+        if self.min_move is not None:
+            moves = np.full(split.shape, np.nan)
+            moves[frame["fold"].to_numpy(), frame["candidate"].to_numpy()] = frame["move"].to_numpy()
+            largest = np.max(np.where(np.isnan(moves), -np.inf, moves), axis=0)
+            results["max_move"] = np.where(np.isfinite(largest), largest, np.nan)
+            results["active"] = largest >= float(self.min_move)
+        if reference is not None:
+            diff = split - split[:, [reference]]  # paired by fold; NaN where either failed
+            results["mean_diff_reference"] = diff.mean(axis=0)
+            results["se_diff_reference"] = diff.std(axis=0, ddof=1) / np.sqrt(diff.shape[0])
         self.cv_results_ = results
 
     def _best(self, X):

@@ -97,13 +97,20 @@ from .reprojection import OrthographicReprojection
 from .svt import soft_threshold_singular_values_gram
 from .tnh_result import TNHResult, fit_summary
 
-__all__ = ["solve_admm"]
+__all__ = [
+    "solve_admm",
+    "check_admm_options",
+    "balancing_factor",
+    "track_scale",
+    "options_record",
+    "ADAPT_MAX_CHANGES",
+]
 
 _RCOND = 1e-10  # relative cut-off of camera singular values in the pseudo-inverse
 _ADAPT_EVERY = 10  # iterations between residual-balancing checks
 _ADAPT_MU = 2.0  # balance when one relative residual exceeds mu times the other
 _ADAPT_FACTOR = 2.0
-_ADAPT_MAX_CHANGES = 50
+ADAPT_MAX_CHANGES = 50
 _FEASIBILITY_RTOL = 1e-9  # exact-fit residual tolerance (relative to the track scale) of a singular camera
 
 
@@ -217,17 +224,23 @@ def solve_admm(
         tau=0.0,
         exact_fit=True,
         **fit,
-        options={
-            "tol": tol,
-            "max_iter": max_iter,
-            "beta": beta0,
-            "relaxation": alpha,
-            "adaptive": bool(adaptive),
-            "final_beta": run.beta,
-        },
+        options=options_record(tol, max_iter, beta0, alpha, adaptive, run.beta),
         dual=Y,
         duality_gap=float(run.gap * scale),
     )
+
+
+def options_record(tol, max_iter, beta0, alpha, adaptive, final_beta) -> dict:
+    """The ``options`` of an ADMM TNH result: those it ran with, and ``final_beta``, the adapted penalty."""
+    keys = ("tol", "max_iter", "beta", "relaxation", "adaptive", "final_beta")
+    return dict(zip(keys, (tol, max_iter, beta0, alpha, bool(adaptive), final_beta), strict=True))
+
+
+def track_scale(term: OrthographicReprojection) -> float:
+    """RMS of the observed tracks (1 if they are all zero): the unit of the ADMM solvers' normalised
+    problems, whose objectives are positively homogeneous in the tracks."""
+    scale = float(np.sqrt(np.sum(term.W**2) / (2 * max(int(term.mask.sum()), 1))))
+    return scale if scale > 0 else 1.0
 
 
 def check_admm_options(tol, max_iter, beta, relaxation) -> tuple[float, int, float, float]:
@@ -265,11 +278,7 @@ class _ExactFitSet:
         self.observed = term.mask[:, None, :]  # (F, 1, P), broadcasts over the 3 coordinates
 
         # Normalised units: the problem is positively homogeneous in the tracks, so solve with b / scale.
-        n_obs = int(term.mask.sum())
-        scale = float(np.sqrt(np.sum(term.W**2) / (2 * max(n_obs, 1))))
-        if not scale > 0:  # all observed tracks are zero (or nothing is observed): X = 0 is optimal
-            scale = 1.0
-        self.scale = scale
+        self.scale = scale = track_scale(term)
         W3 = (term.W / scale).reshape(F, 2, P)
 
         pinv = _pinv_cameras(term.R)  # (F, 3, 2)
@@ -354,8 +363,8 @@ def _iterate(feasible: _ExactFitSet, Z, U, beta, alpha, tol, max_iter, adaptive,
             if gap <= tol * nuclear:
                 status = CONVERGED
                 break
-        if adaptive and changes < _ADAPT_MAX_CHANGES:
-            factor = _balancing_factor(r_rel, s_rel)
+        if adaptive and changes < ADAPT_MAX_CHANGES:
+            factor = balancing_factor(r_rel, s_rel)
             if factor is None:
                 continue
             beta *= factor
@@ -375,7 +384,7 @@ def _relative_residuals(X, Z, Y, feasible: _ExactFitSet) -> tuple[float, float]:
     return r_rel, s_rel
 
 
-def _balancing_factor(r_rel: float, s_rel: float) -> float | None:
+def balancing_factor(r_rel: float, s_rel: float) -> float | None:
     """Residual balancing: the factor beta is multiplied by, or None to leave it."""
     if r_rel > _ADAPT_MU * s_rel:
         return _ADAPT_FACTOR

@@ -1,23 +1,10 @@
 """Choosing the kernel method's tau and width for NRSfM from the image tracks alone.
 
-Same folds and score as :mod:`nldr.nrsfm.selection` (hidden observed 2D points, their mean squared
-reprojection error); nothing here sees the 3D ground truth.
-
-:func:`select_kernel` chooses the kernel regularizer's tau and width (a multiple of the paper's
-d_med or d_max rule, computed on the start shapes). By default it keeps the paper's values unless a
-candidate beats them by more than one standard error of the paired fold differences, and it ignores
-candidates at which the regularizer did not move its start (those score the start method, TNH, whose
-linear completion of the image tracks the 2D score favours although it is worse in depth,
-docs/REPRODUCTION.md#selection-nrsfm). With known cameras (Table 3) every fold starts from the
-exact-fit TNH of its training points; after :func:`select_tnh_tau` (Table 4) every fold starts from
-that fold's TNH at the selected tau, and every fold solve and the refit are Table 4's kernel stage:
-cameras and shapes optimised jointly (:func:`~nldr.nrsfm.reconstruct` with estimated cameras; the
-fold solves from one start each, the refit with the multistart of ``camera_options``).
-
-Cost. The kernel candidates of one (fold, width) pair are solved along tau from the smallest up, each
-after the first warm-started from its neighbour with the last penalty stage only (the argument of
-:mod:`nldr.model_selection`); ``warm_start=False`` solves each from the fold's start with the full
-schedule. Folds run in parallel with ``n_jobs``.
+Same folds, score and search as :mod:`nldr.nrsfm.selection` (hidden observed 2D points, their mean
+squared reprojection error, :class:`~nldr.model_selection.HoldoutSearch`); nothing here sees the 3D
+ground truth. The kernel candidates of one (fold, width) pair are solved along tau from the smallest
+up, each after the first warm-started from its neighbour with the last penalty stage only
+(HoldoutSearch's ``path``); a fold computes its start once.
 """
 
 from __future__ import annotations
@@ -25,26 +12,30 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
-from threadpoolctl import threadpool_limits
 
-from .._cv import positive_grid, run_jobs, summarise_folds
+from .._cv import positive_grid
 from .._validation import check_count, check_positive
-from ..regularizer import minimize_regularized
-from .reconstruct import WIDTH_RULES, reconstruct, solver_arguments
-from .reprojection import OrthographicReprojection, check_cameras, check_tracks, reprojection_error
-from .selection import TNHTauSelection, visibility_folds
+from .reconstruct import WIDTH_RULES
+from .reprojection import check_cameras, check_tracks
+from .selection import (
+    TNHTauSelection,
+    TrackReconstruction,
+    cv_table,
+    point_entries,
+    search_points,
+    visibility_folds,
+)
 from .tnh import trace_norm_heuristic
-from .variables import CameraFrameVariables
 
 __all__ = [
     "DEFAULT_KERNEL_TAUS",
     "PAPER_KERNEL",
     "MIN_MOVE",
     "WIDTH_MULTIPLES",
-    "WIDTH_RULES",
     "KernelSelection",
     "select_kernel",
 ]
@@ -82,7 +73,7 @@ class KernelSelection:
     cv_results_ : DataFrame
         One row per candidate, by width multiple then tau: ``tau, width_multiple, mean_test_error``
         (mean squared hidden reprojection error, unit of the tracks squared), ``std_test_error``,
-        ``fit_time`` (mean CPU seconds per fold solve; warm-started candidates are cheaper),
+        ``fit_time`` (mean seconds per fold solve; warm-started candidates are cheaper),
         ``max_move`` (largest relative change of the start shapes over the folds), ``active``
         (``max_move >= min_move``); with ``rule="reference"`` also ``mean_diff_reference`` and
         ``se_diff_reference``: mean and standard error over folds of the score minus the
@@ -97,7 +88,7 @@ class KernelSelection:
     start_ : (R, X)
         Cameras (F, 2, 3) and shapes (F, 3P) the refit started from.
     refit_time_ : float
-        CPU seconds of the refit's kernel solve (or alternation) alone: the cost of one solve.
+        CPU seconds of the refit's kernel solve alone: the cost of one solve.
     """
 
     tau_: float
@@ -115,80 +106,6 @@ class KernelSelection:
             f"KernelSelection(tau_={self.tau_:.4g}, width_multiple_={self.width_multiple_:g}, "
             f"gamma_={self.gamma_:.4g}, candidates={len(self.cv_results_)})"
         )
-
-
-def _kernel_fold(W2d, train, hidden, R, start, rule, multiples, taus, warm_start, options, depth_scale):
-    with threadpool_limits(1):
-        X_start = start.x
-        if R is not None:
-            term = OrthographicReprojection(W2d, R, train)
-            if depth_scale is not None:  # the fold's cameras are fixed: L-BFGS in their frames
-                options = {**options, "variables": CameraFrameVariables(R, train, depth_scale)}
-        rho_max = options.get("rho_max", 1e4 if R is not None else 10.0)
-        base_gamma = WIDTH_RULES[rule](X_start)
-        rows = []
-        for m in multiples:
-            previous = None
-            for tau in taus:
-                begin = time.process_time()
-                stage = options
-                if warm_start and previous is not None:
-                    stage = {**options, "rho0": rho_max, "rho_max": rho_max}
-                if R is None:  # Table 4's kernel stage from one start (the previous candidate's, warm)
-                    res = reconstruct(
-                        W2d, train, prior="kernel", tau=float(tau), width=m * base_gamma,
-                        start=previous or start, multistart=False, **stage,
-                    )  # fmt: skip
-                else:
-                    if stage is not options:  # the last stage alone, in the full schedule's units
-                        stage = {"scale": float(np.sqrt(options.get("rho0", 1.0))), **stage}
-                    X0 = X_start if previous is None else previous.x
-                    res = minimize_regularized(
-                        term, X0, gamma=m * base_gamma, tau=float(tau), **solver_arguments(stage)
-                    )
-                previous = res if warm_start else None
-                error = reprojection_error(W2d, hidden, R if R is not None else res.R, res.x, mean=True)
-                rows.append(
-                    {
-                        "tau": float(tau),
-                        "width_multiple": float(m),
-                        "test_error": error,
-                        "fit_time": time.process_time() - begin,
-                        "move": float(np.linalg.norm(res.x - X_start) / np.linalg.norm(X_start)),
-                    }
-                )
-        return rows
-
-
-def _choose_kernel(rows: list[dict], rule: str, reference, min_move: float):
-    """Summarise the fold rows (each with its ``fold``) per candidate and pick one (see select_kernel):
-    ``(cv_results, fold_scores, index of the choice)``."""
-    frame = pd.DataFrame(rows)
-    keys = ["width_multiple", "tau"]
-    cv = summarise_folds(rows, keys)[
-        ["tau", "width_multiple", "mean_test_error", "std_test_error", "fit_time"]
-    ]
-    by = frame.groupby(keys, sort=True)
-    cv["max_move"] = by["move"].max().to_numpy()
-    cv["active"] = cv["max_move"] >= min_move
-    eligible = cv["active"].to_numpy() if cv["active"].any() else np.ones(len(cv), dtype=bool)
-    mean = cv["mean_test_error"].to_numpy()
-    scores = frame.pivot(index="fold", columns=keys, values="test_error").sort_index(axis=1)
-    if rule == "min":
-        return cv, scores, int(np.flatnonzero(eligible)[np.argmin(mean[eligible])])
-    ref = np.flatnonzero(np.isclose(cv["tau"], reference[0]) & np.isclose(cv["width_multiple"], reference[1]))
-    diff = scores.to_numpy() - scores.to_numpy()[:, [ref[0]]]  # (n_folds, n_candidates), paired by fold
-    cv["mean_diff_reference"] = diff.mean(axis=0)
-    cv["se_diff_reference"] = diff.std(axis=0, ddof=1) / np.sqrt(diff.shape[0])
-    better = eligible & (cv["mean_diff_reference"] + cv["se_diff_reference"] < 0).to_numpy()
-    if not better.any():
-        return cv, scores, int(ref[0])
-    return cv, scores, int(np.flatnonzero(better)[np.argmin(mean[better])])
-
-
-def _known_camera_start(W2d, R, train, tnh_options):
-    with threadpool_limits(1):
-        return trace_norm_heuristic(W2d, R, train, **tnh_options)
 
 
 def select_kernel(
@@ -239,15 +156,15 @@ def select_kernel(
     width_multiples : sequence of float > 0, optional
         Default :data:`WIDTH_MULTIPLES`.
     width_rule : {"d_med", "d_max"}, default "d_med"
-        The paper's rule the multiples scale (:data:`WIDTH_RULES`).
+        The paper's rule the multiples scale (:data:`~nldr.nrsfm.reconstruct.WIDTH_RULES`).
     n_folds, holdout_fraction, random_state
         Folds of :func:`visibility_folds` (known cameras only; ``tnh`` brings its own).
     warm_start : bool, default True
         Solve each (fold, width) along tau, smallest first, warm-starting with the last penalty stage.
     rule : {"reference", "min"}, default "reference"
-        "min": the eligible candidate with the smallest mean hold-out error. "reference": the
-        ``reference`` candidate, unless eligible candidates beat it by more than one standard error
-        of their per-fold (paired) score differences from it; then the one of those with the
+        HoldoutSearch's rule over the eligible candidates. "min": the smallest mean hold-out error.
+        "reference": the ``reference`` candidate, unless candidates beat it by more than one standard
+        error of their per-fold (paired) score differences from it; then the one of those with the
         smallest mean. The hold-out score of 2D points separates the candidates by a few percent,
         less than its spread over folds (docs/REPRODUCTION.md#selection-nrsfm), so "min" follows
         the noise; "reference" leaves a default only on evidence.
@@ -264,10 +181,9 @@ def select_kernel(
         With ``R``: the refit's start, the TNH on every observed point with ``tnh_options``, when the
         caller has it already (default: computed here).
     depth_scale : float > 0, optional
-        Run the fold solves (their cameras are fixed: ``R``, or each fold's TNH cameras) and, with
-        ``R``, the refit in :class:`~nldr.nrsfm.CameraFrameVariables` with this scale: the same
-        minimisers, far fewer L-BFGS iterations (docs/REPRODUCTION.md#table-3-solver). Default:
-        L-BFGS on the shapes themselves.
+        With ``R``, run the fold solves and the refit in :class:`~nldr.nrsfm.CameraFrameVariables`
+        with this scale: the same minimisers, far fewer L-BFGS iterations
+        (docs/REPRODUCTION.md#table-3-solver). Default: L-BFGS on the shapes themselves.
     n_jobs : int >= 1
         Processes over the folds.
     **regularizer_options
@@ -293,67 +209,50 @@ def select_kernel(
         depth_scale = check_positive(depth_scale, "depth_scale")
     n_jobs = check_count(n_jobs, "n_jobs")
     taus = positive_grid(DEFAULT_KERNEL_TAUS if taus is None else taus, "taus")
-    multiples = positive_grid(
-        WIDTH_MULTIPLES if width_multiples is None else width_multiples, "width_multiples"
-    )
+    multiples = WIDTH_MULTIPLES if width_multiples is None else width_multiples
+    multiples = positive_grid(multiples, "width_multiples")
     if rule not in ("reference", "min"):
         raise ValueError(f"rule must be 'reference' or 'min'; got {rule!r}")
+    search_rule = {"rule": rule}
     if rule == "reference":
         if np.shape(reference) != (2,):
             raise ValueError(f"reference must be a pair (tau, width_multiple); got {reference!r}")
-        if not (np.isclose(taus, reference[0]).any() and np.isclose(multiples, reference[1]).any()):
-            raise ValueError(
-                f"reference {tuple(reference)} must be on the grid: tau in {taus.tolist()}, "
-                f"width multiple in {multiples.tolist()}"
-            )
-    min_move = float(min_move)
-    if not (np.isfinite(min_move) and min_move >= 0):
-        raise ValueError(f"min_move must be finite and >= 0; got {min_move}")
-    W2d = W
+        search_rule["reference"] = {"tau": float(reference[0]), "width_multiple": float(reference[1])}
     if R is not None:
         R = check_cameras(R, mask.shape[0])
         tnh_options = dict(tnh_options or {})
         folds = visibility_folds(mask, n_folds, random_state, holdout_fraction=holdout_fraction)
-        starts = run_jobs([(_known_camera_start, (W2d, R, mask & ~h, tnh_options)) for h in folds], n_jobs)
-        fold_cameras = [R] * len(folds)
+        start, fold_options = tnh_options, dict(regularizer_options)
     else:
         if tnh.folds_[0].shape != mask.shape or np.any(tnh.folds_[0] & ~mask):
             raise ValueError("tnh was selected on another mask; pass the mask of select_tnh_tau")
-        folds = tnh.folds_
-        starts = list(tnh.fold_results_)
-        fold_cameras = [None] * len(folds)  # estimated, by every fold solve
-    args = [
-        (W2d, mask & ~h, h, Rk, Xk, width_rule, multiples, taus, warm_start, regularizer_options, depth_scale)
-        for h, Rk, Xk in zip(folds, fold_cameras, starts, strict=True)
-    ]
-    per_fold = run_jobs([(_kernel_fold, a) for a in args], n_jobs)
-    rows = [{**row, "fold": k} for k, fold in enumerate(per_fold) for row in fold]
-    cv, scores, best = _choose_kernel(rows, rule, reference, min_move)
-    tau, multiple = float(cv["tau"].iloc[best]), float(cv["width_multiple"].iloc[best])
-    if R is not None:
-        if X_start is None:
-            X0 = _known_camera_start(W2d, R, mask, tnh_options).x
-        else:
-            X0 = np.asarray(X_start, dtype=np.float64)
-            if X0.shape != (mask.shape[0], 3 * mask.shape[1]):
-                raise ValueError(f"X_start must have shape (F, 3P) = {(mask.shape[0], 3 * mask.shape[1])}")
-        gamma = multiple * WIDTH_RULES[width_rule](X0)
-        refit = dict(regularizer_options)
-        if depth_scale is not None:
-            refit["variables"] = CameraFrameVariables(R, mask, depth_scale)
-        begin = time.process_time()
-        term = OrthographicReprojection(W2d, R, mask)
-        result = minimize_regularized(term, X0, gamma=gamma, tau=tau, **solver_arguments(refit))
-        start = (R, X0)
-    else:
-        R0, X0 = tnh.result_.R, tnh.result_.x
-        gamma = multiple * WIDTH_RULES[width_rule](X0)
-        begin = time.process_time()
-        result = reconstruct(
-            W2d, mask, prior="kernel", tau=tau, width=gamma, start=tnh.result_,
-            **dict(camera_options or {}), **regularizer_options,
-        )  # fmt: skip
-        start = (R0, X0)
-    return KernelSelection(
-        tau, multiple, gamma, cv, scores, result, folds, start, time.process_time() - begin
+        folds, start = tnh.folds_, {"tau": tnh.tau_, **tnh.options_}
+        fold_options = {"multistart": False, **regularizer_options}  # the fold solves: one start each
+    estimator = TrackReconstruction(
+        width_rule=width_rule, cameras=R, start=start, options=fold_options, depth_scale=depth_scale
     )
+    grid = [{"width_multiple": [float(m)], "tau": taus.tolist()} for m in multiples]
+    path = {"path": "tau"} if warm_start else {}
+    search = search_points(W, mask, folds, estimator, grid, n_jobs, min_move=min_move, **search_rule, **path)
+    cv = cv_table(search, ["tau", "width_multiple"])
+    columns = pd.MultiIndex.from_arrays([cv["width_multiple"], cv["tau"]], names=["width_multiple", "tau"])
+    splits = [search.cv_results_[f"split{k}_test_error"] for k in range(len(folds))]
+    scores = pd.DataFrame(np.array(splits), columns=columns).rename_axis(index="fold")
+    best = search.best_params_
+    if R is not None:  # the refit from the TNH of every observed point
+        X0 = trace_norm_heuristic(W, R, mask, **tnh_options).x if X_start is None else X_start
+        X0 = np.asarray(X0, dtype=np.float64)
+        if X0.shape != (mask.shape[0], 3 * mask.shape[1]):
+            raise ValueError(f"X_start must have shape (F, 3P) = {(mask.shape[0], 3 * mask.shape[1])}")
+        refit = estimator.set_params(start=SimpleNamespace(x=X0), **best)
+    else:  # from the TNH refit, with camera_options
+        options = {**dict(camera_options or {}), **regularizer_options}
+        refit = estimator.set_params(start=tnh.result_, options=options, **best)
+    begin = time.process_time()
+    refit.fit(np.where(point_entries(mask), W, np.nan))
+    seconds = time.process_time() - begin
+    start = (R if R is not None else tnh.result_.R, refit.start_.x)
+    return KernelSelection(
+        float(best["tau"]), float(best["width_multiple"]), refit.gamma_, cv, scores, refit.result_, folds,
+        start, seconds,
+    )  # fmt: skip

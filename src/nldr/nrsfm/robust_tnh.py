@@ -62,7 +62,7 @@ import numpy as np
 
 from .._validation import as_float_matrix, check_positive
 from ..result import CONVERGED, MAX_ITER
-from .admm import check_admm_options
+from .admm import ADAPT_MAX_CHANGES, balancing_factor, check_admm_options, options_record, track_scale
 from .reprojection import OrthographicReprojection
 from .svt import soft_threshold_singular_values_gram
 from .tnh_result import TNHResult, fit_summary
@@ -70,9 +70,6 @@ from .tnh_result import TNHResult, fit_summary
 __all__ = ["RobustTNHResult", "robust_trace_norm_heuristic", "robust_tnh_objective"]
 
 _CHECK_EVERY = 10  # iterations between gap evaluations and residual-balancing checks
-_ADAPT_MU = 2.0
-_ADAPT_FACTOR = 2.0
-_ADAPT_MAX_CHANGES = 50
 
 
 @dataclass(kw_only=True, repr=False)
@@ -212,14 +209,7 @@ def robust_trace_norm_heuristic(
         tau=tau,
         exact_fit=False,
         **fit,
-        options={
-            "tol": tol,
-            "max_iter": max_iter,
-            "beta": beta0,
-            "relaxation": alpha,
-            "adaptive": bool(adaptive),
-            "final_beta": run["beta"],
-        },
+        options=options_record(tol, max_iter, beta0, alpha, adaptive, run["beta"]),
         dual=dual,
         duality_gap=float(fun - lower),
         l1_error=l1,
@@ -239,9 +229,7 @@ class _L1Problem:
         self.tau = tau
         self.R = term.R
         self.observed = term.mask[:, None, :]  # (F, 1, P)
-        n_obs = int(term.mask.sum())
-        scale = float(np.sqrt(np.sum(term.W**2) / (2 * max(n_obs, 1))))
-        self.scale = scale if scale > 0 else 1.0
+        self.scale = track_scale(term)
         self.b = term.W.reshape(F, 2, P) / self.scale  # zero where unobserved
         self.Rt = term.R.transpose(0, 2, 1)  # (F, 3, 2)
         self.inverse = np.linalg.inv(np.eye(3) + self.Rt @ term.R)  # (F, 3, 3), (I + R^T R)^-1
@@ -306,16 +294,12 @@ class _L1Problem:
             if gap <= tol * primal:
                 status = CONVERGED
                 break
-            if adaptive and changes < _ADAPT_MAX_CHANGES:
+            if adaptive and changes < ADAPT_MAX_CHANGES:
                 r = np.sqrt(np.sum((X - Z) ** 2) + np.sum((AX + e - b) ** 2 * obs))
                 r_rel = r / max(np.linalg.norm(X), np.linalg.norm(Z), self.b_norm, 1e-300)
                 s = beta * np.linalg.norm(self.back(e - e_old) - (Z - Z_old))
                 s_rel = s / max(beta * np.linalg.norm(U), beta * np.linalg.norm(self.back(V)), 1e-300)
-                factor = None
-                if r_rel > _ADAPT_MU * s_rel:
-                    factor = _ADAPT_FACTOR
-                elif s_rel > _ADAPT_MU * r_rel:
-                    factor = 1.0 / _ADAPT_FACTOR
+                factor = balancing_factor(r_rel, s_rel)
                 if factor is not None:
                     beta *= factor
                     U /= factor

@@ -8,18 +8,20 @@ its image coordinates), the method reconstructs from the rest, and the fold's sc
 squared reprojection error of the hidden points, ``mean ||w_f(x_j) - R_f s_f(x_j)||^2`` over the
 hidden (f, j), with the frame's camera R_f and the reconstructed 3D point s_f(x_j) (squared unit of
 the tracks). The score is invariant to the global gauge (R_f Q, Q^T s), so estimated cameras need no
-alignment. The chosen candidate (for TNH's tau: the smallest mean score over the folds) is refitted
-on every observed point. Nothing here sees the 3D ground truth.
+alignment. Nothing here sees the 3D ground truth.
+
+The search is :class:`nldr.model_selection.HoldoutSearch`, with the 2D points as its entries: the
+tracks W (F, 2P) with NaN at unobserved points are the matrix, a fold hiding the points ``h`` (F, P)
+hides the entries ``[h, h]``, and each candidate is a reconstruction whose completion of W is its
+reprojection R_f s_f of every point.
 
 - :func:`visibility_folds`: the hidden points of each fold (same seed, same folds).
-- :func:`select_tnh_tau`: TNH's tau with cameras estimated (Table 4's pipeline: rigid factorisation,
-  then TNH alternating with the camera LM, every tau from the rigid cameras, as the oracle search of
-  :func:`~nldr.experiments.table4.tune_tau` does). Each fold re-estimates the rigid cameras from
-  its own training points.
-- The kernel method's tau and width: :mod:`nldr.nrsfm.kernel_selection` (same folds and score).
+- :func:`select_tnh_tau`: TNH's tau with cameras estimated (Table 4's pipeline).
+- :func:`~nldr.nrsfm.kernel_selection.select_kernel`: the kernel method's tau and width, with known
+  cameras (Table 3) or after :func:`select_tnh_tau` (Table 4's kernel stage), by default keeping the
+  paper's values unless the evidence is against them.
 
-Cost. TNH's taus are always cold starts from the rigid cameras (a continuation in tau lands in a
-different basin, docs/REPRODUCTION.md#table-4-tnh). Folds run in parallel with ``n_jobs``.
+Folds run in parallel with ``n_jobs``.
 
 Layouts as in :mod:`nldr.nrsfm.layout`: tracks W2d (F, 2P), shapes X (F, 3P), cameras R (F, 2, 3),
 visibility masks (F, P), True where observed.
@@ -28,21 +30,31 @@ visibility masks (F, P), True where observed.
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from threadpoolctl import threadpool_limits
+from sklearn.base import BaseEstimator, TransformerMixin
 
-from .._cv import positive_grid, run_jobs, summarise_folds
+from .._cv import positive_grid
+from .._options import last_stage_only
 from .._validation import check_count, check_positive
+from ..model_selection import HoldoutSearch
+from ..regularizer import minimize_regularized
 from .factorization import initialize_cameras
-from .reconstruct import Reconstruction, reconstruct
-from .reprojection import check_tracks, reprojection_error
+from .reconstruct import WIDTH_RULES, Reconstruction, reconstruct, solver_arguments
+from .reprojection import OrthographicReprojection, check_tracks
+from .tnh import trace_norm_heuristic
+from .variables import CameraFrameVariables
 
 __all__ = [
     "DEFAULT_TNH_TAUS",
     "visibility_folds",
+    "point_entries",
+    "TrackReconstruction",
+    "search_points",
+    "cv_table",
     "TNHTauSelection",
     "select_tnh_tau",
 ]
@@ -50,9 +62,8 @@ __all__ = [
 #: TNH tau grid (unit of the tracks squared): 7 log-spaced values over Table 4's search interval [0.1, 100].
 DEFAULT_TNH_TAUS = tuple(float(t) for t in np.logspace(-1, 2, 7))
 
-
 # --------------------------------------------------------------------------------------------------
-# Folds and the score
+# Folds, the score, and a reconstruction as an estimator of HoldoutSearch
 # --------------------------------------------------------------------------------------------------
 
 
@@ -132,6 +143,122 @@ def visibility_folds(
     return folds
 
 
+def point_entries(hidden_points: np.ndarray) -> np.ndarray:
+    """Hidden points (F, P) as hidden entries (F, 2P) of the tracks: both image coordinates."""
+    return np.hstack([hidden_points, hidden_points])
+
+
+def _point_error(W, W_hat, hidden) -> float:
+    """HoldoutSearch's score: mean over the hidden points of ||w - R s||^2 (both coordinates), from
+    the tracks W and a reconstruction's reprojections W_hat (F, 2P) and the hidden entries."""
+    F, P = W.shape[0], W.shape[1] // 2
+    squared = np.sum((W.reshape(F, 2, P) - W_hat.reshape(F, 2, P)) ** 2, axis=1)
+    return float(squared[hidden[:, :P]].mean())
+
+
+class TrackReconstruction(TransformerMixin, BaseEstimator):
+    """A reconstruction as an imputer of image tracks, for :class:`~nldr.model_selection.HoldoutSearch`.
+
+    ``fit(X)``: X (F, 2P) are the tracks with NaN at the unobserved points; ``transform`` returns the
+    reprojections R_f s_f (F, 2P) of the fit on every point. ``prior="tnh"``: TNH with estimated
+    cameras at ``tau`` from the rigid cameras of the observed points (``options``: the alternation's).
+    ``prior="kernel"``: the kernel method at ``tau`` and ``width_multiple`` times the ``width_rule``
+    of its start, minimize_regularized with the known ``cameras`` (``depth_scale``: camera-frame
+    L-BFGS) or, with ``cameras=None``, Table 4's kernel stage (:func:`~nldr.nrsfm.reconstruct`);
+    ``options`` are the regularizer's. ``start``: a mapping of the options of the start to compute
+    (the known-camera TNH's; with estimated cameras those of :func:`select_tnh_tau`'s TNH, ``tau``
+    included), or the start itself (a result with shapes ``x``, and cameras ``R`` if estimated).
+    With ``warm_start`` and the same observed points as the previous fit, the start is reused, and a
+    fit at the previous fit's width continues from its answer with the last penalty stage alone.
+    Fitted: ``result_``, ``gamma_`` and ``move_``, the relative change of the start's shapes.
+    """
+
+    def __init__(self, prior="kernel", tau=1.0, width_multiple=1.0, width_rule="d_med", cameras=None,
+                 start=None, options=None, depth_scale=None, warm_start=False):  # fmt: skip
+        self.prior = prior
+        self.tau = tau
+        self.width_multiple = width_multiple
+        self.width_rule = width_rule
+        self.cameras = cameras
+        self.start = start
+        self.options = options
+        self.depth_scale = depth_scale
+        self.warm_start = warm_start
+
+    def fit(self, X, y=None):
+        X = np.asarray(X, dtype=np.float64)
+        vis = ~np.isnan(X[:, : X.shape[1] // 2])
+        W = np.where(np.isnan(X), 0.0, X)
+        options = dict(self.options or {})
+        if self.prior == "tnh":
+            R0 = initialize_cameras(W, vis)
+            self.result_ = reconstruct(W, vis, prior="tnh", tau=self.tau, initial_cameras=R0, **options)
+            self.move_ = np.inf
+            return self
+        warm = self.warm_start and hasattr(self, "start_") and np.array_equal(self.visible_, vis)
+        if not warm:
+            self.start_ = self._start(W, vis)
+        start, previous = self.start_, self.result_ if warm else None
+        if previous is not None and self.width_multiple != self.fitted_width_:
+            previous = None  # another width: from the start, with the full schedule
+        if previous is not None and self.cameras is None:  # the last stage alone
+            options.update(rho0=options.get("rho_max", 10.0), rho_max=options.get("rho_max", 10.0))
+        self.gamma_ = gamma = float(self.width_multiple) * WIDTH_RULES[self.width_rule](start.x)
+        if self.cameras is None:  # Table 4's kernel stage (from the previous answer, warm)
+            self.result_ = reconstruct(
+                W, vis, prior="kernel", tau=float(self.tau), width=gamma, start=previous or start, **options
+            )
+        else:
+            if self.depth_scale is not None:  # the cameras are fixed: L-BFGS in their frames
+                options["variables"] = CameraFrameVariables(self.cameras, vis, self.depth_scale)
+            term, X0 = OrthographicReprojection(W, self.cameras, vis), (previous or start).x
+            arguments = solver_arguments(options)
+            if previous is not None:  # the last stage alone, in the full schedule's units
+                arguments = last_stage_only(arguments)
+            self.result_ = minimize_regularized(term, X0, gamma=gamma, tau=float(self.tau), **arguments)
+        self.visible_, self.fitted_width_ = vis, self.width_multiple
+        self.move_ = float(np.linalg.norm(self.result_.x - start.x) / np.linalg.norm(start.x))
+        return self
+
+    def _start(self, W, vis):
+        if not isinstance(self.start, Mapping):
+            return self.start
+        options = dict(self.start)
+        if self.cameras is not None:
+            return trace_norm_heuristic(W, self.cameras, vis, **options)
+        R0 = initialize_cameras(W, vis)
+        return reconstruct(W, vis, prior="tnh", tau=options.pop("tau"), initial_cameras=R0, **options)
+
+    def transform(self, X):
+        """The reprojections (F, 2P) of the fit (whatever X: the fit's own tracks are completed)."""
+        res = self.result_
+        R = self.cameras if self.cameras is not None and self.prior == "kernel" else res.R
+        return (R @ res.x.reshape(R.shape[0], 3, -1)).reshape(R.shape[0], -1)
+
+
+def search_points(W, mask, folds, estimator, grid, n_jobs, **options) -> HoldoutSearch:
+    """HoldoutSearch of ``estimator`` over ``grid`` on the tracks (NaN at unobserved points)."""
+    X = np.where(point_entries(mask), W, np.nan)
+    search = HoldoutSearch(
+        estimator, grid, folds=[point_entries(h) for h in folds], scoring=_point_error, refit=False,
+        n_jobs=n_jobs, **options,
+    )  # fmt: skip
+    return search.fit(X)
+
+
+def cv_table(search, names) -> pd.DataFrame:
+    """cv_results_ of a search as a DataFrame: ``names``, ``mean_test_error``, ``std_test_error``,
+    ``fit_time`` and the rule's columns."""
+    r = search.cv_results_
+    out = pd.DataFrame({name: np.asarray(r[f"param_{name}"], dtype=np.float64) for name in names})
+    out["mean_test_error"], out["std_test_error"] = r["mean_test_error"], r["std_test_error"]
+    out["fit_time"] = r["mean_fit_time"]
+    for extra in ("max_move", "active", "mean_diff_reference", "se_diff_reference"):
+        if extra in r:
+            out[extra] = r[extra]
+    return out
+
+
 # --------------------------------------------------------------------------------------------------
 # TNH's tau with estimated cameras (Table 4)
 # --------------------------------------------------------------------------------------------------
@@ -148,7 +275,7 @@ class TNHTauSelection:
     cv_results_ : DataFrame
         One row per candidate, by tau: ``tau, mean_test_error`` (mean over folds of the mean squared
         reprojection error of the hidden points, unit of the tracks squared), ``std_test_error``
-        (sample sd over folds), ``fit_time`` (mean CPU seconds of one fold solve).
+        (sample sd over folds), ``fit_time`` (mean seconds of one fold solve).
     result_ : Reconstruction
         TNH with estimated cameras at ``tau_`` on every observed point, from ``rigid_cameras_``
         (:func:`~nldr.nrsfm.reconstruct`).
@@ -156,8 +283,8 @@ class TNHTauSelection:
         Rigid factorisation of every observed point (the refit's start).
     folds_ : list of bool arrays, shape (F, P)
         The hidden points of each fold.
-    fold_results_ : list of Reconstruction
-        Each fold's solve at ``tau_`` (start of :func:`select_kernel`'s folds).
+    options_ : dict
+        The alternation's options of the folds and the refit (:func:`select_kernel`'s fold starts).
     refit_time_ : float
         CPU seconds of the refit alone (rigid factorisation and one alternation): the cost of one solve.
     """
@@ -167,25 +294,12 @@ class TNHTauSelection:
     result_: Reconstruction
     rigid_cameras_: np.ndarray
     folds_: list
-    fold_results_: list
+    options_: dict
     refit_time_: float
 
     def __repr__(self) -> str:
         n, k = len(self.cv_results_), len(self.folds_)
         return f"TNHTauSelection(tau_={self.tau_:.4g}, candidates={n}, folds={k})"
-
-
-def _tnh_fold(W2d, train, hidden, taus, options):
-    with threadpool_limits(1):
-        R0 = initialize_cameras(W2d, train)
-        rows, results = [], []
-        for tau in taus:
-            start = time.process_time()
-            res = reconstruct(W2d, train, prior="tnh", tau=float(tau), initial_cameras=R0, **options)
-            error = reprojection_error(W2d, hidden, res.R, res.x, mean=True)
-            rows.append({"tau": float(tau), "test_error": error, "fit_time": time.process_time() - start})
-            results.append(res)
-        return rows, results
 
 
 def select_tnh_tau(
@@ -203,12 +317,11 @@ def select_tnh_tau(
     """Choose TNH's tau for NRSfM with unknown cameras by hold-out reprojection error.
 
     Per fold: rigid factorisation of the training points
-    (:func:`~nldr.nrsfm.factorization.initialize_cameras`), then for every tau
-    TNH with estimated cameras from those cameras (:func:`~nldr.nrsfm.reconstruct` with
-    ``prior="tnh"``: a cold start, to convergence), scored on the fold's hidden points. The chosen tau
-    is refitted on every observed point from the rigid cameras of all of them: exactly one evaluation
-    of Table 4's oracle search (then the camera search, with ``camera_search``, as Table 4 does at
-    its tau*).
+    (:func:`~nldr.nrsfm.factorization.initialize_cameras`), then for every tau TNH with estimated
+    cameras from those cameras (:func:`~nldr.nrsfm.reconstruct` with ``prior="tnh"``: a cold start, to
+    convergence), scored on the fold's hidden points. The tau of smallest mean score is refitted on
+    every observed point from the rigid cameras of all of them: exactly one evaluation of Table 4's
+    oracle search (then the camera search, with ``camera_search``, as Table 4 does at its tau*).
 
     Parameters
     ----------
@@ -237,23 +350,14 @@ def select_tnh_tau(
     n_jobs = check_count(n_jobs, "n_jobs")
     taus = positive_grid(DEFAULT_TNH_TAUS if taus is None else taus, "taus")
     folds = visibility_folds(mask, n_folds, random_state, holdout_fraction=holdout_fraction)
-    W2d = W  # zeros where unobserved
-    per_fold = run_jobs([(_tnh_fold, (W2d, mask & ~h, h, taus, alternation_options)) for h in folds], n_jobs)
-    cv = summarise_folds([row for rows, _ in per_fold for row in rows], ["tau"])
-    best = int(np.argmin(cv["mean_test_error"].to_numpy()))
-    tau = float(cv["tau"].iloc[best])
+    estimator = TrackReconstruction(prior="tnh", options=dict(alternation_options))
+    search = search_points(W, mask, folds, estimator, {"tau": taus.tolist()}, n_jobs)
+    tau = float(search.best_params_["tau"])
     start = time.process_time()
-    R0 = initialize_cameras(W2d, mask)
+    R0 = initialize_cameras(W, mask)
     result = reconstruct(
-        W2d,
-        mask,
-        prior="tnh",
-        tau=tau,
-        initial_cameras=R0,
-        camera_search=camera_search,
-        **alternation_options,
+        W, mask, prior="tnh", tau=tau, initial_cameras=R0, camera_search=camera_search, **alternation_options
     )
     refit_time = time.process_time() - start
-    k = int(np.flatnonzero(taus == tau)[0])
-    fold_results = [results[k] for _, results in per_fold]
-    return TNHTauSelection(tau, cv, result, R0, folds, fold_results, refit_time)
+    cv = cv_table(search, ["tau"])
+    return TNHTauSelection(tau, cv, result, R0, folds, dict(alternation_options), refit_time)
