@@ -3,23 +3,12 @@ on the observed entries inside ``fit`` (``tau="auto"``, ``gamma="auto"``)."""
 
 import numpy as np
 import pytest
+from test_impute import hide, surface
 
 from nldr.baselines import mean_impute
 from nldr.impute import KernelRegularizerImputer
 from nldr.impute import regularizer as module
 from nldr.model_selection import holdout_folds
-
-
-def surface(n, rng, noise=0.0):
-    t, s = rng.uniform(0, 1, n), rng.uniform(0, 1, n)
-    X = np.c_[t, t**2, np.sin(3 * t), s, s * t, np.cos(2 * s)]
-    return X + noise * rng.standard_normal(X.shape)
-
-
-def hide(X, p, rng):
-    mask = rng.random(X.shape) >= p
-    mask[np.arange(X.shape[0]), rng.integers(0, X.shape[1], X.shape[0])] = True
-    return np.where(mask, X, np.nan), mask
 
 
 def median_rule(est, W, mask):
