@@ -74,7 +74,9 @@ class GPLVMImputer(MaskedImputerBase):
     matrix, GPy's default ARD RBF kernel and Gaussian noise), runs ``max_iter`` iterations of L-BFGS-B
     on the variational bound, and predicts every missing entry as the GP's posterior mean at its row's
     latent mean. Observed entries are returned as given. ``transform`` on new rows infers each new
-    row's latent point from its observed entries (GPy's ``infer_newX``) and predicts there.
+    row's latent point as the training row's latent mean whose prediction best fits (least squares) the
+    new row's observed entries, and predicts its missing entries there (GPy's own ``infer_newX`` fails on
+    this model with missing data).
 
     Parameters
     ----------
@@ -137,11 +139,14 @@ class GPLVMImputer(MaskedImputerBase):
         return X_hat, None
 
     def _complete(self, W, mask):
-        Y = np.where(mask, (W - self.mean_) / self.scale_, np.nan)
-        with _quiet(), _seeded(int(self.random_state)):
-            latent, _ = self.model_.infer_newX(Y, optimize=True)
-            pred = np.asarray(self.model_.predict(np.asarray(latent.mean))[0])
-        return np.where(mask, W, pred * self.scale_ + self.mean_)
+        Y = np.where(mask, (W - self.mean_) / self.scale_, 0.0)
+        with _quiet():
+            latent = np.asarray(self.model_.X.mean)
+            fitted = np.asarray(self.model_.predict(latent)[0])  # (n_train, d), standardised
+        # each new row: the training latent mean whose prediction best fits the row's observed entries
+        err = (mask.astype(float) @ (fitted**2).T) - 2.0 * (Y * mask) @ fitted.T
+        best = np.argmin(err, axis=1)
+        return np.where(mask, W, fitted[best] * self.scale_ + self.mean_)
 
 
 def _pca_start(Y0: np.ndarray, q: int) -> np.ndarray:
