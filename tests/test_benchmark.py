@@ -154,10 +154,10 @@ def test_jobs_cells_and_caption_follow_the_config():
     benchmark = get("benchmark")
     config = {
         "benchmark": {
-            "datasets": {
-                "oil100": {"source": "oil", "n_rows": 100},
-                "wine": {"source": "wine", "skip_mechanisms": ["MAR"]},
-            },
+            "datasets": [
+                {"name": "oil100", "source": "oil", "n_rows": 100},
+                {"name": "wine", "source": "wine", "skip_mechanisms": ["MAR"]},
+            ],
             "subsample_seed": 1,
             "missingness": [{"mechanism": "MCAR", "p": 0.1}, {"mechanism": "MAR", "p": 0.25}],
             "slope": 2.0,
@@ -172,6 +172,9 @@ def test_jobs_cells_and_caption_follow_the_config():
     assert ids == ["oil100_MCAR0.1", "oil100_MAR0.25", "wine_MCAR0.1"]
     assert not benchmark.in_paper
     assert "10 seeded masks" in benchmark.caption(config)
+    config["benchmark"]["datasets"].append({"name": "wine", "source": "diabetes"})
+    with pytest.raises(ValueError, match="share a name"):
+        benchmark.check(config)
 
 
 def test_sklearn_sets_load_without_download_subsample_and_drop_constant_columns():

@@ -66,7 +66,7 @@ _TUNED = ("missForest", "GP-LVM", "KNNImputer", "SoftImpute")
 
 
 def load_dataset(spec: Mapping, data_dir, subsample_seed: int) -> np.ndarray:
-    """The complete matrix of one ``datasets`` entry, shape (n, d).
+    """The complete matrix of one ``datasets`` entry (without its ``name``), shape (n, d).
 
     ``spec["source"]`` is ``"oil"`` (the first ``n_rows`` oil-flow training rows, as Table 2) or one of
     :data:`SKLEARN_SETS`; for those, ``n_rows`` below the set's size draws that many rows without
@@ -268,7 +268,11 @@ class Benchmark(Experiment):
     def jobs(self, config):
         s = self.settings(config)
         jobs = []
-        for dataset, spec in s["datasets"].items():
+        names = [spec["name"] for spec in s["datasets"]]
+        if len(set(names)) < len(names):
+            raise ValueError(f"benchmark.datasets: two data sets share a name in {names}")
+        for entry in s["datasets"]:
+            dataset, spec = entry["name"], {k: v for k, v in entry.items() if k != "name"}
             for cell in s["missingness"]:
                 mech, p = cell["mechanism"], float(cell["p"])
                 if mech in spec.get("skip_mechanisms", []):
@@ -279,7 +283,7 @@ class Benchmark(Experiment):
         return jobs
 
     def data_files(self, config, job=None):
-        sets = self.settings(config)["datasets"].values() if job is None else [job.params["spec"]]
+        sets = self.settings(config)["datasets"] if job is None else [job.params["spec"]]
         return ["oil/DataTrn.txt", "oil/DataTrnLbls.txt"] if any(s["source"] == "oil" for s in sets) else []
 
     def resources(self, config, job):
@@ -313,8 +317,11 @@ class Benchmark(Experiment):
     def caption(self, config):
         s = self.settings(config)
         sets = ", ".join(
-            f"{name} ({spec['source']}" + (f", {spec['n_rows']} rows" if spec.get("n_rows") else "") + ")"
-            for name, spec in s["datasets"].items()
+            f"{spec['name']} ({spec['source']}"
+            + (f", {spec['n_rows']} rows" if spec.get("n_rows") else "")
+            + (f", {spec['pool']} x {spec['pool']} pixel blocks" if spec.get("pool", 1) > 1 else "")
+            + ")"
+            for spec in s["datasets"]
         )
         return (
             f"Benchmark (not in the paper): RMSE of the hidden entries in units of each column's sd, mean ± "
