@@ -59,7 +59,7 @@ root, results, settings, table_path, run_paths = nb.root, nb.results, nb.setting
 
 # %%
 result = pd.read_csv(table_path)
-summary = result[result["setting"].str.contains("^all$|=", regex=True)]
+summary = result[result["setting"].str.match(r"all$|dataset=|mechanism=")]
 wide = summary.pivot_table(index="method", columns=["setting", "metric"], values="value", sort=False)
 display(wide.round(2))
 
@@ -67,7 +67,7 @@ display(wide.round(2))
 # ## RMSE per cell (mean ± sd over the masks)
 
 # %%
-cells = result[~result["setting"].str.contains("^all$|=", regex=True)]
+cells = result[~result["setting"].str.match(r"all$|dataset=|mechanism=")]
 display(Markdown(tables.to_markdown(cells, digits=3, metrics=["rmse"], transpose=True)))
 
 # %%
