@@ -166,19 +166,22 @@ def test_table2_peers_follow_the_paper_rows_only_on_their_first_masks(data_dir, 
         "methods": ["KNNImputer", "IterativeImputer", "missForest"],
         "n_folds": 2,
         "masks": {"missForest": 1},
+        "missforest_trees": 10,
     }
     table2 = get("table2")
     settings = table2.job_settings(config)
     first, second = (table2.run(job, settings, data_dir).rows for job in table2.jobs(config))
-    assert list(first["method"]) == ["Ours", "KNNImputer (CV)", "IterativeImputer", "missForest (CV)"]
+    peers = ["KNNImputer (CV)", "IterativeImputer", "missForest (10 trees, CV)"]
+    assert list(first["method"]) == ["Ours", *peers]
     assert list(second["method"]) == ["Ours", "KNNImputer (CV)", "IterativeImputer"]
     pd.testing.assert_frame_equal(first.iloc[:1][paper_rows.columns], paper_rows.assign(seed=t2["seed"]))
     knn = first.set_index("method").loc["KNNImputer (CV)"]
     assert knn["params"].startswith("{'n_neighbors'") and knn["available"] and knn["sse"] > 0
     assert first["n_missing"].nunique() == 2  # the stub's count, and the real mask's (same for every peer)
     table = table2.summarise(pd.concat([first, second]))
-    assert list(dict.fromkeys(table["method"])) == ["Ours", *[m for m in module.PEER_ROWS if "Soft" not in m]]
+    assert list(dict.fromkeys(table["method"])) == ["Ours", *peers]
     n_masks = table[table["metric"] == "n_masks"].set_index("method")["value"]
-    assert n_masks["missForest (CV)"] == 1 and n_masks["KNNImputer (CV)"] == 2
+    assert n_masks["missForest (10 trees, CV)"] == 1 and n_masks["KNNImputer (CV)"] == 2
     caption = table2.caption(config)
     assert "not in the paper" in caption and "missForest on the first 1 masks" in caption
+    assert "10 trees per column (its authors recommend 100)" in caption

@@ -195,7 +195,12 @@ def test_peer_grids_and_selection_with_and_without_a_knob():
     search = HoldoutSearch(estimator, grid, n_folds=3, random_state=0)
     assert search.fit(W).best_params_ == {} and len(search.cv_results_["params"]) == 1
     np.testing.assert_array_equal(search.transform(W), iterative_imputer().fit_transform(W))
-    assert baseline_grid("missForest", W)[1] == {"estimator__max_features": [1 / 3, 1.0]}
+    forest, grid = baseline_grid("missForest", W)
+    assert grid == {"estimator__max_features": [1 / 3, 1.0]}
+    assert forest.estimator.n_estimators == 100  # missForest's authors' and scikit-learn's default
+    assert baseline_grid("missForest", W, n_trees=10)[0].estimator.n_estimators == 10
+    with pytest.raises(ValueError, match="n_trees"):
+        baseline_grid("missForest", W, n_trees=0)
     estimator, grid = baseline_grid("SoftImpute", W)
     # the largest lam is 0.3 of the value at which the completion is mean imputation
     mu = np.array([W[mask[:, j], j].mean() for j in range(W.shape[1])])

@@ -32,6 +32,7 @@ _REGISTRY = {
     "robust_nrsfm": ("robust_nrsfm", "RobustNRSfM"),
     "out_of_sample": ("out_of_sample", "OutOfSample"),
     "denoising": ("denoising", "Denoising"),
+    "benchmark": ("benchmark", "Benchmark"),
 }
 _INSTANCES: dict[str, Experiment] = {}
 

@@ -29,8 +29,9 @@ from .. import paper as paper_numbers
 from ..datasets import load_oil
 from ..impute import KernelRegularizerImputer
 from ..model_selection import HoldoutSearch, baseline_grid, median_gamma
+from ..model_selection.imputers import MISSFOREST_TREES
 from .base import Job, JobOutput, summary_stats
-from .table2 import PEER_ROWS, Table2, random_mask
+from .table2 import PEER_ROWS, Table2, peer_label, random_mask
 
 __all__ = ["Selection", "SelectionFull", "METHODS", "exact_path", "regularizer_imputer", "fold_params"]
 
@@ -198,12 +199,14 @@ class Selection(Table2):
 
         for method in settings["baselines"]:
             clock = _clock()
-            estimator, param_grid = baseline_grid(method, W)
+            trees = settings.get("missforest_trees", MISSFOREST_TREES)
+            estimator, param_grid = baseline_grid(method, W, n_trees=trees)
+            label = peer_label(method, bool(param_grid), trees)
             if param_grid:
                 peer = HoldoutSearch(estimator, param_grid, n_folds=settings["n_folds"], random_state=seed)
-                X_hat, label, params = peer.fit_transform(W), f"{method} (CV)", repr(peer.best_params_)
+                X_hat, params = peer.fit_transform(W), repr(peer.best_params_)
             else:
-                X_hat, label, params = clone(estimator).fit_transform(W), method, "{}"
+                X_hat, params = clone(estimator).fit_transform(W), "{}"
             record(label, X_hat, clock, params=params)
 
         cv, truth = search.cv_results_, oracle.cv_results_
@@ -250,7 +253,8 @@ class Selection(Table2):
             f"2's masks), sum of squared errors, mean ± sd over {s['n_masks']} masks per p. Ours with the "
             f"paper's gamma and tau; with tau and gamma chosen by hold-out CV on the observed entries "
             f"({folds}, {rule}); and the best grid point on ground truth (an oracle, a reference only). "
-            f"Baselines and peers (KNNImputer, IterativeImputer, SoftImpute, missForest; not in the paper) "
+            f"Baselines and peers (KNNImputer, IterativeImputer, SoftImpute, missForest with "
+            f"{s.get('missforest_trees', MISSFOREST_TREES)} trees; not in the paper) "
             f"with their knob chosen by {s['n_folds']}-fold CV (a partition of the observed entries; "
             "IterativeImputer has none)."
         )

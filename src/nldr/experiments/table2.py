@@ -27,12 +27,14 @@ from .. import paper as paper_numbers
 from .._validation import as_float_matrix
 from ..datasets import load_oil, load_oil_rows
 from ..model_selection import HoldoutSearch, baseline_grid
+from ..model_selection.imputers import MISSFOREST_TREES
 from .base import Experiment, Job, JobOutput, summary_stats
 
 __all__ = [
     "METHODS",
     "PEERS",
     "PEER_ROWS",
+    "peer_label",
     "random_mask",
     "paper_methods",
     "run_mask",
@@ -48,8 +50,24 @@ METHODS = ("mean", "1-NN", "PPCA", "PKPCA", "RKPCA", "Ours")
 #: The peers (not in the paper), names of :func:`nldr.model_selection.baseline_grid`.
 PEERS = ("KNNImputer", "IterativeImputer", "SoftImpute", "missForest")
 #: Their rows, in this order after the paper's: "(CV)" where a knob was chosen by CV (IterativeImputer
-#: has none).
-PEER_ROWS = ("KNNImputer (CV)", "IterativeImputer", "SoftImpute (CV)", "missForest (CV)")
+#: has none); missForest's label names its trees when they are not its recommended 100
+#: (:func:`peer_label`; the paper-protocol tables run 10).
+PEER_ROWS = (
+    "KNNImputer (CV)",
+    "IterativeImputer",
+    "SoftImpute (CV)",
+    "missForest (CV)",
+    "missForest (10 trees, CV)",
+)
+
+
+def peer_label(method: str, tuned: bool, n_trees: int = MISSFOREST_TREES) -> str:
+    """A peer's row label: ``"<method> (CV)"`` when a knob was chosen by CV, and for missForest with
+    other than :data:`~nldr.model_selection.imputers.MISSFOREST_TREES` trees, ``"missForest (<k> trees,
+    CV)"``."""
+    if method == "missForest" and n_trees != MISSFOREST_TREES:
+        return f"missForest ({n_trees} trees, CV)"
+    return f"{method} (CV)" if tuned else method
 
 
 def random_mask(shape: tuple[int, int], p: float, seed: int) -> np.ndarray:
@@ -171,6 +189,7 @@ def run_peers(
     seed: int,
     methods=PEERS,
     n_folds: int = 5,
+    n_trees: int = MISSFOREST_TREES,
     progress: Callable[[str], None] | None = None,
 ) -> pd.DataFrame:
     """Complete the mask of :func:`run_mask` (same p and seed) with each peer, its knob chosen by
@@ -183,6 +202,7 @@ def run_peers(
     p, seed : the mask's missing probability and seed (also the seed of the CV folds).
     methods : which of :data:`PEERS`.
     n_folds : hold-out folds of the observed entries.
+    n_trees : missForest's trees per column (its label names them when not 100, :func:`peer_label`).
     progress : optional callback receiving one line per finished method.
 
     Returns
@@ -198,14 +218,15 @@ def run_peers(
     rows = []
     for method in methods:
         start = time.perf_counter()
-        estimator, grid = baseline_grid(method, W)
+        estimator, grid = baseline_grid(method, W, n_trees=n_trees)
+        label = peer_label(method, bool(grid), n_trees)
         if grid:
             search = HoldoutSearch(estimator, grid, n_folds=n_folds, random_state=seed)
             X_hat, fitted = search.fit_transform(W), search.best_estimator_
-            label, params = f"{method} (CV)", repr(search.best_params_)
+            params = repr(search.best_params_)
         else:
             fitted = clone(estimator)
-            X_hat, label, params = fitted.fit_transform(W), method, "{}"
+            X_hat, params = fitted.fit_transform(W), "{}"
         seconds = time.perf_counter() - start
         sse = float(np.sum((X_hat - X) ** 2))
         if not np.isfinite(sse):
@@ -264,12 +285,20 @@ _PEER_WORDS = {
 }
 
 
+def _peer_words(method: str, peers: Mapping) -> str:
+    words = _PEER_WORDS[method]
+    trees = peers.get("missforest_trees", MISSFOREST_TREES)
+    if method == "missForest" and trees != MISSFOREST_TREES:
+        words += f", {trees} trees per column (its authors recommend {MISSFOREST_TREES})"
+    return words
+
+
 def peers_caption(settings: Mapping) -> str:
     """The caption's sentence on the peers' rows (empty without peers)."""
     peers = settings["peers"]
     if not peers["methods"]:
         return ""
-    names = "; ".join(_PEER_WORDS[m] for m in peers["methods"])
+    names = "; ".join(_peer_words(m, peers) for m in peers["methods"])
     limits = [
         f"{m} on the first {k} masks per p only (its CV is the costly part)"
         for m, k in peers.get("masks", {}).items()
@@ -345,7 +374,15 @@ class Table2(Experiment):
         limits = peers.get("masks", {})
         chosen = [m for m in peers["methods"] if mask < limits.get(m, mask + 1)]
         if chosen:
-            more = run_peers(X, p=p, seed=seed, methods=chosen, n_folds=peers["n_folds"], progress=progress)
+            more = run_peers(
+                X,
+                p=p,
+                seed=seed,
+                methods=chosen,
+                n_folds=peers["n_folds"],
+                n_trees=peers.get("missforest_trees", MISSFOREST_TREES),
+                progress=progress,
+            )
             rows = pd.concat([rows, more], ignore_index=True)
         return rows
 

@@ -16,10 +16,34 @@ from .._validation import as_float_matrix
 from ..baselines._masked import mean_fill
 from .folds import GAMMA_MULTIPLES, median_gamma
 
-__all__ = ["BASELINES", "SOFT_IMPUTE_FRACTIONS", "baseline_grid", "iterative_imputer", "missforest_imputer"]
+__all__ = [
+    "BASELINES",
+    "SOFT_IMPUTE_FRACTIONS",
+    "MISSFOREST_TREES",
+    "GPLVM_LATENT",
+    "GPLVM_INDUCING",
+    "baseline_grid",
+    "iterative_imputer",
+    "missforest_imputer",
+]
 
 #: The names :func:`baseline_grid` knows: the paper's baselines with a knob, then the peers.
-BASELINES = ("PPCA", "PKPCA", "RKPCA", "KNNImputer", "IterativeImputer", "missForest", "SoftImpute", "RPCA")
+BASELINES = (
+    "PPCA",
+    "PKPCA",
+    "RKPCA",
+    "KNNImputer",
+    "IterativeImputer",
+    "missForest",
+    "SoftImpute",
+    "RPCA",
+    "GP-LVM",
+)
+#: missForest's trees per column and sweep: its authors' recommendation and ExtraTreesRegressor's default
+MISSFOREST_TREES = 100
+#: GP-LVM's grid: latent dimensions and inducing points (each capped below the matrix's columns / rows)
+GPLVM_LATENT = (2, 5)
+GPLVM_INDUCING = (15, 30)
 #: SoftImpute's lam grid, as fractions of the largest singular value of the centred mean-filled matrix
 #: (the lam at which Z = 0): two and a half decades below it.
 SOFT_IMPUTE_FRACTIONS = (0.003, 0.01, 0.03, 0.1, 0.3)
@@ -40,14 +64,19 @@ def iterative_imputer(*, max_iter: int = 10, tol: float = 1e-3, random_state: in
 
 
 def missforest_imputer(
-    *, max_features: float = 1.0, n_estimators: int = 10, max_iter: int = 5, random_state: int = 0
+    *,
+    max_features: float = 1.0,
+    n_estimators: int = MISSFOREST_TREES,
+    max_iter: int = 5,
+    random_state: int = 0,
 ) -> IterativeImputer:
     """missForest (Stekhoven & Buehlmann 2012) in scikit-learn's form: ``IterativeImputer`` with an
     ``ExtraTreesRegressor`` per column, from the column means (as scikit-learn's own example).
 
     ``max_features``: share of the predictor columns drawn at each split (1.0: all; missForest's sqrt
     rule is about 0.3 at d = 12), the knob of :func:`baseline_grid` (``estimator__max_features``).
-    ``n_estimators``: trees per column and sweep (missForest uses 100). ``max_iter``: sweeps (random
+    ``n_estimators``: trees per column and sweep (:data:`MISSFOREST_TREES`, missForest's and
+    scikit-learn's default). ``max_iter``: sweeps (random
     trees never meet scikit-learn's ``tol``, so all run; on oil flow 5 are as good as 10).
     ``random_state`` seeds the trees.
     """
@@ -69,7 +98,7 @@ def missforest_imputer(
     )
 
 
-def baseline_grid(method: str, X) -> tuple[object, dict]:
+def baseline_grid(method: str, X, *, n_trees: int = MISSFOREST_TREES) -> tuple[object, dict]:
     """Default ``(estimator, param_grid)`` of a baseline or a peer, for
     :class:`~nldr.model_selection.HoldoutSearch`.
 
@@ -86,15 +115,20 @@ def baseline_grid(method: str, X) -> tuple[object, dict]:
       uniform, distance.
     - ``"IterativeImputer"``: :func:`iterative_imputer`; no knob (BayesianRidge learns its own
       penalty): the grid is the one fixed setting, ``{}``.
-    - ``"missForest"``: :func:`missforest_imputer`, ``max_features`` 1/3 and 1; 10 trees, 5 sweeps.
+    - ``"missForest"``: :func:`missforest_imputer`, ``max_features`` 1/3 and 1; ``n_trees`` trees
+      (default :data:`MISSFOREST_TREES`), 5 sweeps.
     - ``"SoftImpute"``: ``lam`` = :data:`SOFT_IMPUTE_FRACTIONS` times the largest singular value of the
       centred mean-filled matrix (at that value and above, Z = 0).
     - ``"RPCA"``: principal component pursuit, ``lam_factor`` 0.5, 1, 2 (times Candes et al.'s weight).
+    - ``"GP-LVM"``: :class:`nldr.impute.gplvm.GPLVMImputer` (needs GPy), ``n_latent``
+      :data:`GPLVM_LATENT` (below d) x ``n_inducing`` :data:`GPLVM_INDUCING` (at most n).
 
     Parameters
     ----------
     method : one of :data:`BASELINES`
     X : array, shape (n, d), NaN where missing (the grid's widths and sizes depend on it).
+    n_trees : int, default :data:`MISSFOREST_TREES`
+        missForest's trees per column (the other methods ignore it).
 
     Returns
     -------
@@ -112,7 +146,15 @@ def baseline_grid(method: str, X) -> tuple[object, dict]:
     if method == "IterativeImputer":
         return iterative_imputer(), {}
     if method == "missForest":
-        return missforest_imputer(), {"estimator__max_features": [1 / 3, 1.0]}
+        if isinstance(n_trees, bool) or not isinstance(n_trees, int | np.integer) or n_trees < 1:
+            raise ValueError(f"n_trees must be a positive integer; got {n_trees!r}")
+        return missforest_imputer(n_estimators=int(n_trees)), {"estimator__max_features": [1 / 3, 1.0]}
+    if method == "GP-LVM":
+        from ..impute.gplvm import GPLVMImputer
+
+        latent = sorted({min(q, d - 1) for q in GPLVM_LATENT if d > 1})
+        inducing = sorted({min(m, n) for m in GPLVM_INDUCING})
+        return GPLVMImputer(), {"n_latent": latent, "n_inducing": inducing}
     from .. import impute  # the library's estimators import this package's folds
 
     if method == "PPCA":
