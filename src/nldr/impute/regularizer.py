@@ -180,8 +180,9 @@ class KernelRegularizerImputer(MaskedImputerBase):
         entries hidden (the training matrix's missing share, at least :data:`TUNE_ROW_HIDDEN`).
     weights : {"uniform", "distance"}, default "uniform"
         ``transform`` with ``starts="each"``: how the local minima are averaged.
-    random_state : int, RandomState or None, default None
-        Seeds the landmark draw of the Nystroem warm start (the exact path draws nothing).
+    random_state : int, RandomState or None, default 0
+        Seeds the landmark draw of the Nystroem warm start (the exact path draws nothing) and the
+        tuning's folds. The default 0 makes two fits of one matrix identical; None draws afresh.
     warm_start : bool, default False
         A fit after a previous fit on a matrix of the same shape starts from the previous solve's S
         (``result_.x``) and solves the last penalty stage only (rho0 = rho_max), its stopping tests in
@@ -257,7 +258,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         n_neighbors="auto",
         starts="auto",
         weights="uniform",
-        random_state=None,
+        random_state=0,
         warm_start=False,
         loss="squared",
         delta=1.0,
