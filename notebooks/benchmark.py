@@ -90,17 +90,20 @@ for peer in [m for m in ("missForest", "GP-LVM") if m in means.columns and "Ours
 
 # %% [markdown]
 # ## CPU seconds per fit (mean over masks) and of each cell's tuning
-# From the jobs' arrays (not in the run files, which are the same on every rerun).
+# From the jobs' timings files (`results/timings/benchmark/`), apart from the run files, which are the
+# same on every rerun; the tuned methods' names come from the jobs' arrays.
 
 # %%
 rows = []
-for run, arr in zip(run_paths, nb.arrays, strict=True):
-    if not Path(arr).exists():
+for run, arr, times in zip(run_paths, nb.arrays, nb.timings, strict=True):
+    measured_path = Path(times).with_suffix(".npz")
+    if not (Path(arr).exists() and measured_path.exists()):
         continue
     frame = pd.read_csv(run)
-    with np.load(arr) as data:
-        frame["cpu_seconds"] = data["cpu_seconds"]
-        tune = dict(zip(data["tune_methods"].tolist(), data["tune_cpu_seconds"].tolist(), strict=True))
+    with np.load(arr) as data, np.load(measured_path) as measured:
+        frame["cpu_seconds"] = measured["cpu_seconds"]
+        methods = data["tune_methods"].tolist()
+        tune = dict(zip(methods, measured["tune_cpu_seconds"].tolist(), strict=True))
     frame["tune_cpu_seconds"] = frame["method"].map(tune)
     rows.append(frame)
 if rows:

@@ -408,10 +408,15 @@ def test_benchmark_target_builds_its_table_figure_and_notebook_outside_make_repr
     n_cells = len(s["datasets"]) * len(s["missingness"])
     assert summary[summary["metric"] == "wins"]["value"].sum() >= n_cells  # a tie gives each a win
     runs = pd.concat(pd.read_csv(p) for p in (tmp_path / R / "runs/benchmark").glob("*.csv"))
-    assert len(runs) == n_cells * s["n_masks"] * n and "cpu_seconds" not in runs  # timings: the .npz
+    assert len(runs) == n_cells * s["n_masks"] * n and "cpu_seconds" not in runs  # timings: apart
+    timing_arrays = sorted((tmp_path / R / "timings/benchmark").glob("*.npz"))
+    assert len(timing_arrays) == n_cells
+    for npz in timing_arrays:
+        with np.load(npz) as arrays:
+            assert (arrays["cpu_seconds"] > 0).all() and (arrays["tune_cpu_seconds"] >= 0).all()
     for npz in (tmp_path / R / "runs/benchmark").glob("*.npz"):
         with np.load(npz) as arrays:
-            assert (arrays["cpu_seconds"] > 0).all()
+            assert "cpu_seconds" not in arrays and "tune_methods" in arrays
     assert (tmp_path / R / "figures/benchmark_ranks.png").is_file()
     assert (tmp_path / R / "notebooks/benchmark.ipynb").is_file()
     makefile = (REPO / "Makefile").read_text().splitlines()

@@ -88,7 +88,7 @@ def test_the_limit_reaches_every_loaded_blas_at_call_time(machine, monkeypatch, 
         callers = _blas()
         with _threads.blas_threads_for(rows):
             inside = _blas()
-    assert {t for _, t in callers} == {3} or {t for _, t in callers} == {1}  # 1: a one-thread BLAS build
+    assert {t for _, t in callers} <= {1, 3}  # each library runs 3, or 1 if it is a one-thread build
     keep = mode == "0" or (mode == "small" and rows >= _threads.SMALL_PROBLEM_ROWS)
     assert inside == (callers if keep else {(path, 1) for path, _ in callers})
 
