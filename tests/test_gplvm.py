@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from sklearn.impute import SimpleImputer
 
+from nldr.baselines._masked import observed_standardisation
 from nldr.impute.gplvm import GPY_MISSING, GPLVMImputer
 from nldr.model_selection import baseline_grid
 
@@ -41,6 +42,8 @@ def test_recovers_a_smooth_curve_far_better_than_the_column_means():
     base = _rmse(SimpleImputer().fit_transform(W), X, mask)
     assert _rmse(X_hat, X, mask) < 0.5 * base
     assert np.array_equal(X_hat[mask], X[mask])  # observed entries returned as given
+    mean, scale = observed_standardisation(np.where(mask, X, 0.0), mask)  # the library's one standardisation
+    assert np.array_equal(model.mean_, mean) and np.array_equal(model.scale_, scale)
     again = GPLVMImputer(n_latent=2, n_inducing=15, max_iter=200, random_state=0).fit_transform(W)
     assert np.array_equal(X_hat, again)  # one computation repeated: the seed fixes it
     state = np.random.get_state()[1].copy()  # noqa: NPY002

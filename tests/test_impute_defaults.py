@@ -164,7 +164,8 @@ def test_the_row_fold_scores_are_the_brute_force_errors_and_cost_one_solve_per_f
     monkeypatch.setattr(module, "minimize_regularized", lambda *a, **kw: solves.append(1) or real(*a, **kw))
     est.transform(X_new)
     assert len(solves) == module.TUNE_FOLDS  # the candidates of a fold share its one fit
-    expected = brute_force_row_fold_errors(np.nan_to_num(W), mask, est.gamma_, est.tau_, module.TUNE_TRANSFORM)
+    candidates = module.TUNE_TRANSFORM
+    expected = brute_force_row_fold_errors(np.nan_to_num(W), mask, est.gamma_, est.tau_, candidates)
     assert list(est.transform_results_) == list(module.TUNE_TRANSFORM)
     for candidate, error in expected.items():
         assert est.transform_results_[candidate] == pytest.approx(error, rel=1e-10)

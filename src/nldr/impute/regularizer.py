@@ -10,7 +10,7 @@ from sklearn.utils import check_random_state
 from .._options import ExactOptions, NystroemOptions, last_stage_only, solver_options
 from .._threads import blas_threads_for
 from .._validation import check_count, check_positive
-from ..baselines._masked import mean_fill, observed_column_means
+from ..baselines._masked import mean_fill, observed_standardisation
 from ..data_terms import MaskedHuber, MaskedLeastSquares
 from ..kernels import squared_distances
 from ..preimage import Subspace, average_solutions, complete_from_starts, nearest_rows
@@ -317,13 +317,9 @@ class KernelRegularizerImputer(MaskedImputerBase):
         return gamma, tau
 
     def _standardisation(self, W, mask):
-        d = W.shape[1]
         if not self.standardize:
-            return np.zeros(d), np.ones(d)
-        mean = observed_column_means(W, mask)
-        var = np.where(mask, W - mean, 0.0) ** 2
-        sd = np.sqrt(var.sum(axis=0) / mask.sum(axis=0))
-        return mean, np.where(sd > 0, sd, 1.0)
+            return np.zeros(W.shape[1]), np.ones(W.shape[1])
+        return observed_standardisation(W, mask)
 
     def _solver_arguments(self, n: int, warm: bool) -> tuple[str, dict]:
         """The solver path and minimize_regularized's keyword arguments (checked by _check_params).
