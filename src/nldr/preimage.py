@@ -159,12 +159,16 @@ def _projection(space: Subspace, X: np.ndarray):
     return Kx, r, G
 
 
-def _distance_hessian(space: Subspace, X: np.ndarray, Vt: np.ndarray, XX: np.ndarray):
+#: X_fit^T diag(M) X_fit of every row from the training rows' outer products (one matrix product) while
+#: they hold at most this many numbers; one product per row above (memory O(m n d) instead)
+OUTER_PRODUCTS_MAX = 2**22
+
+
+def _distance_hessian(space: Subspace, X: np.ndarray, Vt: np.ndarray):
     """r(x) (m,), its gradient (m, d) and Hessian (m, d, d) for the rows X (m, d) (formulas: see
-    :func:`_newton_rows`); ``Vt`` is V less its mean row when centred (else V), ``XX`` the training
-    rows' outer products (n, d * d)."""
+    :func:`_newton_rows`); ``Vt`` is V less its mean row when centred (else V)."""
     Xf = space.X_fit
-    d = Xf.shape[1]
+    n, d = Xf.shape
     g2 = 2.0 * space.gamma
     Kx, r, G = _projection(space, X)
     M = G * Kx
@@ -172,7 +176,10 @@ def _distance_hessian(space: Subspace, X: np.ndarray, Vt: np.ndarray, XX: np.nda
     grad = -g2 * (S[:, None] * X - u)
     xu = X[:, :, None] * u[:, None, :]
     second = S[:, None, None] * X[:, :, None] * X[:, None, :] - xu - xu.transpose(0, 2, 1)
-    second += (M @ XX).reshape(-1, d, d)
+    if n * d * d <= OUTER_PRODUCTS_MAX:  # X_fit^T diag(M) X_fit
+        second += (M @ (Xf[:, :, None] * Xf[:, None, :]).reshape(n, d * d)).reshape(-1, d, d)
+    else:
+        second += np.matmul((M[:, :, None] * Xf).transpose(0, 2, 1), Xf)
     J = -g2 * ((Kx @ Vt)[:, :, None] * X[:, None, :] - np.matmul(Vt.T, Kx[:, :, None] * Xf))
     H = g2**2 * second - 2.0 * np.matmul(J.transpose(0, 2, 1), J)
     H[:, np.arange(d), np.arange(d)] -= g2 * S[:, None]
@@ -204,7 +211,6 @@ def _newton_rows(space: Subspace, X0: np.ndarray, free: np.ndarray, max_iter: in
     n, d = space.X_fit.shape
     g2 = 2.0 * space.gamma
     Vt = space.V - space.V.mean(axis=0) if space.centred else space.V
-    XX = (space.X_fit[:, :, None] * space.X_fit[:, None, :]).reshape(n, d * d)
     cap = NEWTON_MAX_STEP / np.sqrt(g2)
     chunk = max(1, int(2**22 // (n * max(d, Vt.shape[1]))))
     active = free.any(axis=1)
@@ -215,7 +221,7 @@ def _newton_rows(space: Subspace, X0: np.ndarray, free: np.ndarray, max_iter: in
         for start in range(0, rows.size, chunk):
             idx = rows[start : start + chunk]
             x, F = X[idx], free[idx]
-            r, grad, H = _distance_hessian(space, x, Vt, XX)
+            r, grad, H = _distance_hessian(space, x, Vt)
             grad = np.where(F, grad, 0.0)
             moving = np.abs(grad).max(axis=1) > gtol
             active[idx[~moving]] = False
