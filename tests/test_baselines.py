@@ -71,6 +71,31 @@ def test_mean_impute_accepts_zero_one_mask_and_ignores_values_at_missing_entries
 # --------------------------------------------------------------------------------------- 1-NN
 
 
+def test_the_one_observed_standardisation_is_what_the_imputers_and_the_benchmark_use(rng):
+    from nldr.baselines._masked import observed_standardisation
+    from nldr.experiments.benchmark import _standardise
+    from nldr.impute import KernelRegularizerImputer
+
+    X = rng.normal(3.0, 2.0, size=(25, 5))
+    X[:, 4] = 1.5  # a constant column: centred, scale 1
+    mask = random_mask(rng, X.shape, 0.3)
+    mask[0] = True  # every column observed
+    W = with_nans(X, mask)
+    mean, scale = observed_standardisation(np.where(mask, X, 0.0), mask)
+    np.testing.assert_allclose(mean, np.nanmean(W, axis=0), rtol=1e-14, atol=0)
+    sd = np.nanstd(W, axis=0)
+    np.testing.assert_allclose(scale, np.where(sd > 1e-12, sd, 1.0), rtol=1e-13, atol=0)
+    assert scale[4] == 1.0
+    # one computation: bit-identical wherever it is used
+    Z, mean_b, scale_b = _standardise(W)
+    np.testing.assert_array_equal(mean_b, mean)
+    np.testing.assert_array_equal(scale_b, scale)
+    np.testing.assert_array_equal(Z, (W - mean) / scale)
+    est = KernelRegularizerImputer(gamma=None, tau=0.1).fit(W)
+    np.testing.assert_array_equal(est.mean_, mean)
+    np.testing.assert_array_equal(est.scale_, scale)
+
+
 def test_nearest_neighbour_copies_from_brute_force_nearest_complete_row(rng):
     X = rng.normal(size=(40, 5))
     mask = random_mask(rng, X.shape, 0.15)

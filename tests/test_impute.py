@@ -8,6 +8,7 @@ from sklearn.base import clone
 from sklearn.linear_model import LogisticRegression
 from sklearn.model_selection import GridSearchCV, cross_val_score
 from sklearn.pipeline import Pipeline
+from sklearn.utils import estimator_checks
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
 from nldr.baselines import mean_impute
@@ -25,7 +26,8 @@ from nldr.impute.regularizer import MEDIAN_RULE_MULTIPLE
 from nldr.regularizer import minimize_regularized
 
 ESTIMATORS = [
-    KernelRegularizerImputer(),
+    # the whole check list at fixed knobs (one solve a fit); the self-tuning default has its own checks
+    KernelRegularizerImputer(gamma=None, tau=0.1, n_neighbors=5, starts="mean"),
     PPCAImputer(),
     PKPCAImputer(),
     RKPCAImputer(),
@@ -38,6 +40,26 @@ ESTIMATORS = [
 @parametrize_with_checks(ESTIMATORS)
 def test_scikit_learn_estimator_checks(estimator, check):
     check(estimator)
+
+
+#: the checks that fit and transform, where the default's tuning runs (inside fit, and at the first
+#: new row): fitting twice, pickling, the parameters left as given, transform's invariances
+DEFAULT_CHECKS = [
+    estimator_checks.check_fit_idempotent,
+    estimator_checks.check_estimators_pickle,
+    estimator_checks.check_dont_overwrite_parameters,
+    estimator_checks.check_estimators_overwrite_params,
+    estimator_checks.check_transformer_general,
+    estimator_checks.check_methods_subset_invariance,
+    estimator_checks.check_methods_sample_order_invariance,
+    estimator_checks.check_dict_unchanged,
+    estimator_checks.check_fit2d_1sample,
+]
+
+
+@pytest.mark.parametrize("check", DEFAULT_CHECKS, ids=lambda c: c.__name__)
+def test_the_self_tuning_default_passes_the_fitting_checks(check):
+    check("KernelRegularizerImputer", KernelRegularizerImputer())
 
 
 def surface(n, rng, noise=0.0):

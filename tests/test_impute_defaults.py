@@ -122,3 +122,64 @@ def test_the_paper_tables_pass_every_knob_the_defaults_would_tune(name, configfi
     params = ours.get_params()
     assert isinstance(params["gamma"], float) and isinstance(params["tau"], float)
     assert params["standardize"] is False and params["method"] in ("exact", "nystroem-warm", "nystroem")
+
+
+def brute_force_row_fold_errors(W, mask, gamma, tau, candidates):
+    """The documented row folds drawn here afresh (seed 0: random_state None), one cold fit per fold and
+    candidate at the fold solver, and the mean squared error on the hidden entries, averaged over folds."""
+    n = W.shape[0]
+    rng = np.random.default_rng(0)
+    share = max(module.TUNE_ROW_HIDDEN, 1.0 - mask.mean())
+    errors = {c: [] for c in candidates}
+    for _ in range(module.TUNE_FOLDS):
+        held = np.zeros(n, dtype=bool)
+        held[rng.choice(n, max(1, int(round(module.TUNE_ROW_SHARE * n))), replace=False)] = True
+        observed = mask[held]
+        hidden = observed & (rng.random(observed.shape) < share)
+        for i in range(hidden.shape[0]):
+            if observed[i].any() and not (observed[i] & ~hidden[i]).any():
+                hidden[i, rng.choice(np.flatnonzero(observed[i]))] = False
+        if not hidden.any():
+            continue
+        rows = np.where(observed & ~hidden, W[held], np.nan)
+        for k, starts in candidates:
+            fold = KernelRegularizerImputer(
+                gamma=gamma, tau=tau, method="exact", options=dict(module._TUNE_TOLERANCES),
+                n_neighbors=k, starts=starts, random_state=None,
+            )  # fmt: skip
+            X_hat = fold.fit(np.where(mask[~held], W[~held], np.nan)).transform(rows)
+            errors[(k, starts)].append(np.mean((X_hat - W[held])[hidden] ** 2))
+    return {c: float(np.mean(e)) for c, e in errors.items()}
+
+
+@pytest.mark.parametrize("seed, p", [(0, 0.1), (1, 0.3), (2, 0.5)])
+def test_the_row_fold_scores_are_the_brute_force_errors_and_cost_one_solve_per_fold(seed, p, monkeypatch):
+    rng = np.random.default_rng(seed)
+    X = surface(36, rng, noise=0.01)
+    W, mask = hide(X, p, rng)
+    W, mask, X_new = W[:30], mask[:30], W[30:]
+    est = KernelRegularizerImputer(gamma=None, tau=0.1, random_state=None).fit(W)  # only transform's knobs
+    solves = []
+    real = module.minimize_regularized
+    monkeypatch.setattr(module, "minimize_regularized", lambda *a, **kw: solves.append(1) or real(*a, **kw))
+    est.transform(X_new)
+    assert len(solves) == module.TUNE_FOLDS  # the candidates of a fold share its one fit
+    candidates = module.TUNE_TRANSFORM
+    expected = brute_force_row_fold_errors(np.nan_to_num(W), mask, est.gamma_, est.tau_, candidates)
+    assert list(est.transform_results_) == list(module.TUNE_TRANSFORM)
+    for candidate, error in expected.items():
+        assert est.transform_results_[candidate] == pytest.approx(error, rel=1e-10)
+    assert (est.n_neighbors_, est.starts_) == min(expected, key=expected.get)
+
+
+def test_a_warm_refit_that_changes_only_transform_knobs_keeps_the_solve(problem):
+    _, W, _ = problem
+    est = KernelRegularizerImputer(gamma=None, tau=0.1, n_neighbors=5, starts="mean", warm_start=True).fit(W)
+    result = est.result_
+    est.set_params(n_neighbors=1, starts="each").fit(W)
+    assert est.result_ is result and (est.n_neighbors_, est.starts_) == (1, "each")
+    est.set_params(tau=0.2).fit(W)  # a knob of the solve: solved again (warm, from the previous answer)
+    assert est.result_ is not result and est.tau_ == 0.2
+    result = est.result_
+    est.fit(W[:-1])  # another matrix: solved again
+    assert est.result_ is not result

@@ -45,6 +45,51 @@ def test_distance_gradient_matches_finite_differences(center, with_target):
     assert np.all(r >= -1e-12)
 
 
+@pytest.mark.parametrize("outer_products_max", [2**22, 0])  # both ways of forming X^T diag(M) X
+@pytest.mark.parametrize("center", [True, False])
+def test_the_newton_hessian_is_the_finite_difference_of_the_gradient(center, outer_products_max, monkeypatch):
+    from nldr import preimage
+    from nldr.preimage import _distance_hessian
+
+    monkeypatch.setattr(preimage, "OUTER_PRODUCTS_MAX", outer_products_max)
+
+    X = data()
+    space = RobustKernelPCA(gamma=0.4, tau=0.5, center=center).fit(X)._subspace()
+    Y = data(4, 3, seed=3)
+    Vt = space.V - space.V.mean(axis=0) if center else space.V
+    r, g, H = _distance_hessian(space, Y, Vt)
+    r_ref, g_ref = subspace_distance(space, Y)
+    np.testing.assert_array_equal(r, r_ref)
+    np.testing.assert_allclose(g, g_ref, rtol=1e-12, atol=1e-15)
+    h = 1e-5
+    for j in range(3):
+        E = np.zeros_like(Y)
+        E[:, j] = h
+        column = (subspace_distance(space, Y + E)[1] - subspace_distance(space, Y - E)[1]) / (2 * h)
+        np.testing.assert_allclose(H[:, :, j], column, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(H, H.transpose(0, 2, 1), rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("center", [True, False])
+def test_completion_ends_at_local_minima_of_the_distance_on_the_missing_entries(center):
+    """First- and second-order optimality per row: gradient on the missing entries at most the solver's
+    gtol (1e-7), and r no lower at any of 20 random perturbations of size 1e-3 of those entries."""
+    X = data(60, 4)
+    model = RobustKernelPCA(gamma=0.4, tau=0.05, center=center).fit(X)
+    space = model._subspace()
+    rng = np.random.default_rng(4)
+    W = data(15, 4, seed=6)
+    mask = rng.random(W.shape) < 0.5
+    mask[:, 0] = True
+    X_hat = model.complete(W, mask)
+    np.testing.assert_array_equal(X_hat[mask], W[mask])
+    r, g = subspace_distance(space, X_hat)
+    assert np.abs(g[~mask]).max() <= 1e-7
+    for _ in range(20):
+        Y = X_hat + np.where(mask, 0.0, 1e-3 * rng.standard_normal(W.shape))
+        assert np.all(subspace_distance(space, Y)[0] >= r - 1e-12)
+
+
 def test_distance_is_the_feature_space_distance_to_the_projection():
     # brute force: explicit projection of the kernel-mapped point, through the Gram matrix
     X = data(12)

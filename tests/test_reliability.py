@@ -295,7 +295,11 @@ def test_data_corrupted_after_a_good_run_stops_the_rerun_with_every_result_intac
     from nldr.datasets import FILES
 
     work = tmp_path / "work"
-    proc = run_snakemake(work, f"{R}/tables/table2.csv", "-c", "2", "--configfile", QUICK)
+    # quick Table 2 at its first p on one mask (a smaller overlay: the same rules and files, one job)
+    small = tmp_path / "table2_small.yaml"
+    small.write_text(yaml.safe_dump({"table2": {"p": quick_config()["table2"]["p"][:1], "n_masks": 1}}))
+    configs = ["--configfile", QUICK, str(small)]
+    proc = run_snakemake(work, f"{R}/tables/table2.csv", "-c", "2", *configs)
     assert proc.returncode == 0, proc.stderr[-3000:]
 
     def results():
@@ -309,7 +313,7 @@ def test_data_corrupted_after_a_good_run_stops_the_rerun_with_every_result_intac
     assert any(p.suffix == ".csv" and "runs" in p.parts for p in before)
     data = work / "resources/oil/DataTrn.txt"
     data.write_text("<!DOCTYPE html><html><body>rate limited</body></html>\n")
-    proc = run_snakemake(work, f"{R}/tables/table2.csv", "-c", "2", "--configfile", QUICK)
+    proc = run_snakemake(work, f"{R}/tables/table2.csv", "-c", "2", *configs)
     out = proc.stdout + proc.stderr
     assert proc.returncode != 0
     assert "oil/DataTrn.txt" in out and FILES["oil/DataTrn.txt"].sha256 in out

@@ -27,8 +27,9 @@ G = dr/dk_x (shape (n,)) the chain rule through dk(x, x_j)/dx = -2 gamma k(x, x_
 with dr/dk_x = -2/n 1 - 2 (V - 1 vbar^T) c, vbar = mean of V's rows, and c = b(x) for r or c = a for
 r_a (uncentred: -2 V c). Rows are independent; every function here works on m rows at once.
 
-Problems solved (L-BFGS over a block of rows; the objective is the sum of the rows' objectives, so its
-minimiser is every row's minimiser):
+Problems solved (L-BFGS over a block of rows, whose objective is the sum of the rows' objectives, so
+its minimiser is every row's minimiser; the hard limit of :func:`complete_rows` by Newton's method on
+each row's free entries, with the exact Hessian of r, see :func:`_newton_rows`):
 
 - :func:`preimage`: min_x r_a(x), the pre-image of a subspace point (``inverse_transform``);
 - :func:`complete_rows`: min over the free entries of
@@ -75,6 +76,8 @@ LOSSES = ("squared", "huber")
 #: rows per L-BFGS block: each block's kernel is (block, n); blocks keep the curvature pairs of
 #: L-BFGS from mixing too many independent rows.
 BLOCK = 64
+#: the hard limit's Newton steps are at most this many kernel widths 1 / sqrt(2 gamma) long
+NEWTON_MAX_STEP = 1.0
 
 
 @dataclass(frozen=True)
@@ -136,6 +139,120 @@ def subspace_distance(space: Subspace, X: np.ndarray, A: np.ndarray | None = Non
     M = G * Kx
     grad = -2.0 * space.gamma * (M.sum(axis=1)[:, None] * X - M @ space.X_fit)
     return r, grad
+
+
+def _projection(space: Subspace, X: np.ndarray):
+    """For m rows X (m, d): the kernel rows Kx (m, n), r(x) (m,), the distance to each row's own
+    projection, and G = dr/dk_x (m, n) (the module docstring's formulas with c = b(x))."""
+    Kx = rbf_kernel(X, space.gamma, space.X_fit)
+    V = space.V
+    if space.centred:
+        kxx = 1.0 - 2.0 * Kx.mean(axis=1) + space.column_means.mean()
+        B = center_cross_kernel(Kx, space.column_means) @ V
+    else:
+        kxx = np.ones(X.shape[0])
+        B = Kx @ V
+    r = kxx - np.einsum("ij,ij->i", B, B)
+    G = -2.0 * (B @ V.T)
+    if space.centred:
+        G += 2.0 * (B @ V.mean(axis=0))[:, None] - 2.0 / Kx.shape[1]
+    return Kx, r, G
+
+
+#: X_fit^T diag(M) X_fit of every row from the training rows' outer products (one matrix product) while
+#: they hold at most this many numbers; one product per row above (memory O(m n d) instead)
+OUTER_PRODUCTS_MAX = 2**22
+
+
+def _distance_hessian(space: Subspace, X: np.ndarray, Vt: np.ndarray):
+    """r(x) (m,), its gradient (m, d) and Hessian (m, d, d) for the rows X (m, d) (formulas: see
+    :func:`_newton_rows`); ``Vt`` is V less its mean row when centred (else V)."""
+    Xf = space.X_fit
+    n, d = Xf.shape
+    g2 = 2.0 * space.gamma
+    Kx, r, G = _projection(space, X)
+    M = G * Kx
+    S, u = M.sum(axis=1), M @ Xf
+    grad = -g2 * (S[:, None] * X - u)
+    xu = X[:, :, None] * u[:, None, :]
+    second = S[:, None, None] * X[:, :, None] * X[:, None, :] - xu - xu.transpose(0, 2, 1)
+    if n * d * d <= OUTER_PRODUCTS_MAX:  # X_fit^T diag(M) X_fit
+        second += (M @ (Xf[:, :, None] * Xf[:, None, :]).reshape(n, d * d)).reshape(-1, d, d)
+    else:
+        second += np.matmul((M[:, :, None] * Xf).transpose(0, 2, 1), Xf)
+    J = -g2 * ((Kx @ Vt)[:, :, None] * X[:, None, :] - np.matmul(Vt.T, Kx[:, :, None] * Xf))
+    H = g2**2 * second - 2.0 * np.matmul(J.transpose(0, 2, 1), J)
+    H[:, np.arange(d), np.arange(d)] -= g2 * S[:, None]
+    return r, grad, H
+
+
+def _newton_rows(space: Subspace, X0: np.ndarray, free: np.ndarray, max_iter: int, gtol: float):
+    """min r(x) over the ``free`` entries of each row of X0 (m, d): Newton's method per row.
+
+    Maintenance note. r depends on x through the kernel row k (k_j = k(x, x_j)): r = kxx(k) - ||b||^2
+    with kxx affine in k and b = k V~ + const, V~ = V less its mean row when centred (else V). With
+    Delta_j = x - x_j, dk_j/dx = -2 gamma k_j Delta_j and d2k_j/dx2 = k_j (4 gamma^2 Delta_j Delta_j^T
+    - 2 gamma I), so with G = dr/dk and M_j = G_j k_j the gradient is g = -2 gamma sum_j M_j Delta_j
+    and the Hessian
+
+        H = 4 gamma^2 sum_j M_j Delta_j Delta_j^T - 2 gamma (sum_j M_j) I - 2 J^T J,
+        J = V~^T dk/dx = -2 gamma (a x^T - Q),  a = V~^T k,  Q = V~^T diag(k) X_fit   (k x d),
+
+    where sum_j M_j Delta_j Delta_j^T = S x x^T - x u^T - u x^T + X_fit^T diag(M) X_fit (S = sum M,
+    u = X_fit^T M). Each row's step solves H_FF s = -g_F on its free entries F with H's eigenvalues
+    replaced by their absolute values (floored at 1e-10 of the largest), so it is a descent direction
+    even where H is indefinite; it is at most one kernel width 1 / sqrt(2 gamma) long, and halved
+    until r decreases by the Armijo rule. A row stops when max |g_F| <= gtol (the test L-BFGS-B's
+    ``gtol`` applies to a block) or when no halving decreases r (r is then flat to rounding).
+    Rows never interact, so a row's answer does not depend on the others. Returns the rows and the
+    number of rows that reached ``max_iter``.
+    """
+    X = X0.copy()
+    n, d = space.X_fit.shape
+    g2 = 2.0 * space.gamma
+    Vt = space.V - space.V.mean(axis=0) if space.centred else space.V
+    cap = NEWTON_MAX_STEP / np.sqrt(g2)
+    chunk = max(1, int(2**22 // (n * max(d, Vt.shape[1]))))
+    active = free.any(axis=1)
+    for _ in range(max_iter):
+        rows = np.flatnonzero(active)
+        if rows.size == 0:
+            return X, 0
+        for start in range(0, rows.size, chunk):
+            idx = rows[start : start + chunk]
+            x, F = X[idx], free[idx]
+            r, grad, H = _distance_hessian(space, x, Vt)
+            grad = np.where(F, grad, 0.0)
+            moving = np.abs(grad).max(axis=1) > gtol
+            active[idx[~moving]] = False
+            if not moving.any():
+                continue
+            idx, x, F, r, grad, H = (v[moving] for v in (idx, x, F, r, grad, H))
+            FF = F[:, :, None] & F[:, None, :]
+            scale = np.abs(np.where(FF, H, 0.0)).max(axis=(1, 2))
+            H = np.where(FF, H, 0.0)
+            H[:, np.arange(d), np.arange(d)] += np.where(F, 0.0, scale[:, None] + 1.0)
+            lam, U = np.linalg.eigh(H)
+            lam = np.maximum(np.abs(lam), 1e-10 * np.abs(lam).max(axis=1, keepdims=True) + 1e-300)
+            step = -np.einsum("mij,mj->mi", U, np.einsum("mji,mj->mi", U, grad) / lam)
+            step = np.where(F, step, 0.0)
+            length = np.linalg.norm(step, axis=1)
+            step *= np.minimum(1.0, cap / np.maximum(length, 1e-300))[:, None]
+            slope = np.einsum("ij,ij->i", grad, step)
+            alpha = np.ones(idx.size)
+            pending = np.ones(idx.size, dtype=bool)
+            for _halving in range(40):
+                trial = x[pending] + alpha[pending, None] * step[pending]
+                r_trial = _projection(space, trial)[1]
+                ok = r_trial <= r[pending] + 1e-4 * alpha[pending] * slope[pending]
+                where = np.flatnonzero(pending)
+                X[idx[where[ok]]] = trial[ok]
+                pending[where[ok]] = False
+                alpha[where[~ok]] *= 0.5
+                if not pending.any():
+                    break
+            active[idx[pending]] = False  # no decrease: flat to rounding
+    return X, int(active.sum())
 
 
 def _lbfgs_rows(
@@ -288,10 +405,10 @@ def complete_rows(
     Returns
     -------
     X : (m, d) completed (and, with finite rho, denoised) rows
-    unconverged : number of row blocks that reached max_iter
+    unconverged : number of row blocks (with ``rho=None``: rows) that reached max_iter
     """
     if rho is None:
-        return _lbfgs_rows(lambda Y, rows: subspace_distance(space, Y), X0, ~mask, max_iter, gtol)
+        return _newton_rows(space, X0, ~mask, max_iter, gtol)
     Wz = np.where(mask, W, 0.0)
 
     def fun_grad(Y, rows):

@@ -312,7 +312,7 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         weights : {"uniform", "distance"}, default "uniform"
             How ``starts="each"`` averages its solutions (ignored with "mean").
         max_iter : int, default 500
-            L-BFGS iterations per block of rows.
+            Newton iterations per row (``rho=None``) or L-BFGS iterations per block of rows.
 
         Returns
         -------
@@ -351,8 +351,9 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         (m, k, n_features_in_), the solution from the j-th nearest training row (nearest first), and
         distance, shape (m, k), that row's mean loss on the observed entries (k = min(n_neighbors,
         n_samples)). ``nldr.preimage.average_solutions(solutions[:, :j], distance[:, :j], weights)``
-        is ``complete(..., n_neighbors=j, starts="each", weights=weights)`` for any j <= k, up to the
-        solver's tolerance (rows are solved in blocks that share L-BFGS's stopping test).
+        is ``complete(..., n_neighbors=j, starts="each", weights=weights)`` for any j <= k: up to
+        rounding with ``rho=None`` (each row is solved on its own), up to the solver's tolerance with a
+        finite rho (rows are solved in blocks that share L-BFGS's stopping test).
         """
         X, mask, rho, delta = self._check_complete(X, mask, rho, loss, delta)
         nearest, distance = nearest_rows(

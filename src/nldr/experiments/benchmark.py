@@ -41,6 +41,7 @@ import pandas as pd
 from sklearn.base import clone
 from sklearn.impute import SimpleImputer
 
+from ..baselines._masked import observed_standardisation
 from ..datasets import load_oil
 from ..model_selection import HoldoutSearch, baseline_grid
 from .base import Experiment, Job, JobOutput, summary_stats
@@ -125,9 +126,8 @@ def make_estimators(methods, W, grids: Mapping | None = None) -> dict:
 
 
 def _standardise(W: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    mean = np.nanmean(W, axis=0)
-    sd = np.nanstd(W, axis=0)
-    sd = np.where(sd > 0, sd, 1.0)
+    mask = ~np.isnan(W)
+    mean, sd = observed_standardisation(np.where(mask, W, 0.0), mask)
     return (W - mean) / sd, mean, sd
 
 

@@ -19,6 +19,7 @@ import warnings
 import numpy as np
 
 from .._validation import check_count
+from ..baselines._masked import observed_standardisation
 from ._base import MaskedImputerBase
 
 __all__ = ["GPLVMImputer", "GPY_MISSING"]
@@ -120,11 +121,8 @@ class GPLVMImputer(MaskedImputerBase):
     def _solve(self, W, mask):
         self._check_params()
         GPy = _gpy()
-        obs = np.where(mask, W, np.nan)
-        self.mean_ = np.nanmean(obs, axis=0)
-        sd = np.nanstd(obs, axis=0)
-        self.scale_ = np.where(sd > 0, sd, 1.0)
-        Y = (obs - self.mean_) / self.scale_
+        self.mean_, self.scale_ = observed_standardisation(W, mask)
+        Y = (np.where(mask, W, np.nan) - self.mean_) / self.scale_
         n, d = Y.shape
         q = min(int(self.n_latent), d)
         X0 = _pca_start(np.where(mask, Y, 0.0), q)

@@ -82,8 +82,9 @@ class RobustKernelPCAImputer(MaskedImputerBase):
           ``rho``, ``loss`` and ``delta`` and no more neighbours, averages the previous
           transform's local minima from its first ``n_neighbors`` neighbours instead of solving again
           (every ``starts="each"`` transform keeps its local minima for this).
-          Those are the same starts; the rows are solved in blocks that share L-BFGS's stopping test,
-          so the answer matches a cold transform to the solver's tolerance, not bit for bit.
+          Those are the same starts; with ``rho=None`` each row is solved on its own, so the answer
+          matches a cold transform up to rounding; with a finite ``rho`` the rows are solved in
+          blocks that share L-BFGS's stopping test, so it matches to the solver's tolerance.
 
     Attributes
     ----------

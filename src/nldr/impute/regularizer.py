@@ -10,12 +10,13 @@ from sklearn.utils import check_random_state
 from .._options import ExactOptions, NystroemOptions, last_stage_only, solver_options
 from .._threads import blas_threads_for
 from .._validation import check_count, check_positive
-from ..baselines._masked import mean_fill, observed_column_means
+from ..baselines._masked import mean_fill, observed_standardisation
 from ..data_terms import MaskedHuber, MaskedLeastSquares
-from ..kernels import center_kernel, rbf_kernel, squared_distances
+from ..kernels import squared_distances
 from ..preimage import Subspace, average_solutions, complete_from_starts, nearest_rows
 from ..regularizer import minimize_regularized
 from ._base import MaskedImputerBase
+from ._new_rows import NoComponentsError, regularizer_subspace, row_folds, search_transform_knobs
 
 __all__ = [
     "KernelRegularizerImputer",
@@ -189,7 +190,9 @@ class KernelRegularizerImputer(MaskedImputerBase):
         the units of the full schedule (``options["scale"]`` = sqrt(rho0 of ``schedule``) unless
         ``options`` sets it). This is how a path of taus or widths is solved cheaply, e.g. by
         :class:`nldr.model_selection.HoldoutSearch` with ``path="tau"``. The first fit, or one on
-        another shape, solves the full schedule from mean imputation.
+        another shape, solves the full schedule from mean imputation. A fit on the previous fit's
+        matrix that changes only ``n_neighbors``, ``starts``, ``weights`` or ``verbose`` keeps the
+        previous solve (the same problem; a path over ``transform``'s knobs shares one fit).
     loss : {"squared", "huber"}, default "squared"
         The data term on the observed entries: masked least squares
         (:class:`~nldr.data_terms.MaskedLeastSquares`), or the masked Huber loss
@@ -314,13 +317,9 @@ class KernelRegularizerImputer(MaskedImputerBase):
         return gamma, tau
 
     def _standardisation(self, W, mask):
-        d = W.shape[1]
         if not self.standardize:
-            return np.zeros(d), np.ones(d)
-        mean = observed_column_means(W, mask)
-        var = np.where(mask, W - mean, 0.0) ** 2
-        sd = np.sqrt(var.sum(axis=0) / mask.sum(axis=0))
-        return mean, np.where(sd > 0, sd, 1.0)
+            return np.zeros(W.shape[1]), np.ones(W.shape[1])
+        return observed_standardisation(W, mask)
 
     def _solver_arguments(self, n: int, warm: bool) -> tuple[str, dict]:
         """The solver path and minimize_regularized's keyword arguments (checked by _check_params).
@@ -392,40 +391,27 @@ class KernelRegularizerImputer(MaskedImputerBase):
     def _tune_transform(self, W, mask, gamma: float, tau: float) -> tuple[int, str]:
         """Choose ``transform``'s (n_neighbors, starts) by :data:`TUNE_FOLDS` row folds of the training rows.
 
-        Each fold fits the manifold (at ``gamma``, ``tau``, the tuning's fold solver) on the other rows,
-        hides a share (the training matrix's missing share, at least :data:`TUNE_ROW_HIDDEN`) of the
-        observed entries of :data:`TUNE_ROW_SHARE` of the rows, completes them with every candidate, and
-        scores the mean squared error on the hidden entries (data units); the smallest mean wins. Sets
-        ``transform_results_`` (candidate -> mean error)."""
+        Each fold (:func:`~nldr.impute._new_rows.row_folds`, seeded by ``random_state``) fits the
+        manifold (at ``gamma``, ``tau``, the tuning's fold solver) on the other rows, hides a share (the
+        training matrix's missing share, at least :data:`TUNE_ROW_HIDDEN`) of the observed entries of
+        :data:`TUNE_ROW_SHARE` of the rows, completes them with every candidate, and scores the mean
+        squared error on the hidden entries (data units); the smallest mean wins
+        (:class:`~nldr.model_selection.HoldoutSearch`, one fit per fold shared by the candidates).
+        Sets ``transform_results_`` (candidate -> mean error)."""
         candidates = self._transform_candidates()
         if len(candidates) == 1:
             return candidates[0]
-        n = W.shape[0]
-        rng = np.random.default_rng(self._tune_seed())
         share = max(TUNE_ROW_HIDDEN, 1.0 - mask.mean())
+        folds = row_folds(mask, TUNE_FOLDS, TUNE_ROW_SHARE, share, self._tune_seed())
         base = self.get_params()
-        base.update(gamma=gamma, tau=tau, warm_start=False, verbose=False, **self._fold_solver(n))
-        base.update(n_neighbors=TUNE_TRANSFORM[1][0], starts="mean")
-        errors = np.zeros(len(candidates))
-        for _ in range(TUNE_FOLDS):
-            held = np.zeros(n, dtype=bool)
-            held[rng.choice(n, max(1, int(round(TUNE_ROW_SHARE * n))), replace=False)] = True
-            observed = mask[held]
-            hidden = observed & (rng.random(observed.shape) < share)
-            for i in np.flatnonzero(observed.any(axis=1) & ~(observed & ~hidden).any(axis=1)):
-                hidden[i, rng.choice(np.flatnonzero(observed[i]))] = False  # each row keeps an entry
-            if not hidden.any():
-                continue
-            fold = type(self)(**base).fit(np.where(mask[~held], W[~held], np.nan))
-            if fold.n_components_ == 0:
-                return candidates[0] if (TUNE_TRANSFORM[1] not in candidates) else TUNE_TRANSFORM[1]
-            seen = observed & ~hidden
-            for c, (k, starts) in enumerate(candidates):
-                fold.n_neighbors_, fold.starts_ = k, starts
-                X_hat = fold._complete(np.where(seen, W[held], 0.0), seen)
-                errors[c] += np.mean((X_hat - W[held])[hidden] ** 2) / TUNE_FOLDS
-        self.transform_results_ = {candidates[c]: float(errors[c]) for c in range(len(candidates))}
-        return candidates[int(np.argmin(errors))]
+        base.update(gamma=gamma, tau=tau, warm_start=False, verbose=False, **self._fold_solver(W.shape[0]))
+        X, found = np.where(mask, W, np.nan), None
+        if folds:
+            found = search_transform_knobs(type(self)(**base), X, candidates, folds, bool(self.verbose))
+        if found is None:  # nothing to hide, or a fold's manifold has no component
+            return TUNE_TRANSFORM[1] if TUNE_TRANSFORM[1] in candidates else candidates[0]
+        self.transform_results_, best = found
+        return best
 
     def _tune_seed(self) -> int:
         if self.random_state is None:
@@ -444,6 +430,10 @@ class KernelRegularizerImputer(MaskedImputerBase):
 
     def _solve(self, W, mask):
         gamma, tau = self._check_params()
+        if self._keeps_solve(W, mask):  # a warm refit that changes only transform's knobs
+            self._transform_knobs(W.shape[0])
+            return self.completed_, self.result_
+        self.__dict__.pop("_solved_key", None)
         self.mean_, self.scale_ = self._standardisation(W, mask)
         Z = W if not self.standardize else np.where(mask, (W - self.mean_) / self.scale_, 0.0)
         S0 = mean_fill(Z, mask)
@@ -463,11 +453,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
                 "tau": 0.1 if _is_auto(tau) else grid["tau"][0],
             }
         self.gamma_, self.tau_ = float(chosen["gamma"]), float(chosen["tau"])
-        for name in ("transform_results_", "n_neighbors_", "starts_"):
-            self.__dict__.pop(name, None)
-        pairs = self._transform_candidates()
-        if len(pairs) == 1 or W.shape[0] < TUNE_MIN_ROWS:  # otherwise chosen at the first new row
-            self.n_neighbors_, self.starts_ = int(pairs[0][0]), str(pairs[0][1])
+        self._transform_knobs(W.shape[0])
         self._training = (W, mask)
         tau = self.tau_
         self.method_, kwargs = self._solver_arguments(W.shape[0], warm)
@@ -479,8 +465,36 @@ class KernelRegularizerImputer(MaskedImputerBase):
         keep = np.flatnonzero(np.any(result.C != 0.0, axis=1))
         self.kernel_factor_ = result.C[keep]
         self.n_components_ = int(keep.size)
+        self._space = None  # built by the first transform of a new row
+        self._solved_key = self._solve_key()
         X_hat = S if not self.standardize else S * self.scale_ + self.mean_
         return X_hat, result
+
+    def _solve_key(self) -> tuple:
+        """The parameters the solve depends on (all but transform's knobs and verbose), comparable."""
+        params = self.get_params(deep=False)
+        ignored = {"n_neighbors", "starts", "weights", "warm_start", "verbose"}
+        return tuple((name, repr(params[name])) for name in sorted(set(params) - ignored))
+
+    def _keeps_solve(self, W, mask) -> bool:
+        """A warm fit on the previous fit's matrix that changes only transform's knobs keeps its solve."""
+        training = getattr(self, "_training", None)
+        return bool(
+            self.warm_start
+            and training is not None
+            and getattr(self, "_solved_key", None) == self._solve_key()
+            and np.array_equal(training[0], W)
+            and np.array_equal(training[1], mask)
+        )
+
+    def _transform_knobs(self, n: int) -> None:
+        """Reset ``transform``'s (n_neighbors_, starts_): set now when fixed (or below
+        :data:`TUNE_MIN_ROWS` rows), otherwise chosen by the row folds at the first new row."""
+        for name in ("transform_results_", "n_neighbors_", "starts_"):
+            self.__dict__.pop(name, None)
+        pairs = self._transform_candidates()
+        if len(pairs) == 1 or n < TUNE_MIN_ROWS:
+            self.n_neighbors_, self.starts_ = int(pairs[0][0]), str(pairs[0][1])
 
     def _data_term(self, Z, mask):
         """The data term on the solved matrix Z: masked least squares, or Huber (delta in Z's units)."""
@@ -489,20 +503,18 @@ class KernelRegularizerImputer(MaskedImputerBase):
         return MaskedLeastSquares(Z, mask)
 
     def _subspace(self) -> Subspace:
-        """The principal subspace spanned by C's rows, in the form :mod:`nldr.preimage` takes."""
-        S = self.manifold_rows_
-        K = rbf_kernel(S, self.gamma_)
-        column_means = K.mean(axis=0) if self.center else None
-        if self.center:
-            K = center_kernel(K)
-        C = self.kernel_factor_
-        U = C / np.linalg.norm(C, axis=1, keepdims=True)  # rows u_i^T of C = diag(l) U^T
-        lam = np.einsum("in,nm,im->i", U, K, U)  # u_i^T K u_i, the eigenvalues of the kept axes
-        return Subspace(X_fit=S, gamma=self.gamma_, V=U.T / np.sqrt(lam)[None, :], column_means=column_means)
+        """The principal subspace spanned by C's rows, in the form :mod:`nldr.preimage` takes (built
+        once per solve)."""
+        space = getattr(self, "_space", None)
+        if space is None:
+            space = self._space = regularizer_subspace(
+                self.manifold_rows_, self.gamma_, self.kernel_factor_, bool(self.center)
+            )
+        return space
 
     def _complete(self, W, mask):
         if self.n_components_ == 0:
-            raise ValueError(
+            raise NoComponentsError(
                 f"the fitted manifold has no component (tau = {self.tau_:g} removed them all): "
                 "transform cannot complete new rows; lower tau"
             )
