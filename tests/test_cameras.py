@@ -685,7 +685,7 @@ def test_every_nrsfm_solver_result_is_a_solver_result():
     """x, fun, status, message, nit and wall_time everywhere; success means status CONVERGED; the repr
     is one line."""
     from nldr.nrsfm import trace_norm_heuristic
-    from nldr.nrsfm.fista import fista_tnh
+    from nldr.nrsfm.tnh import fista_tnh
     from nldr.result import STATUS_NAMES, SolverResult
 
     W, R_true, X = deforming_scene(n_frames=8, n_points=9, seed=41)

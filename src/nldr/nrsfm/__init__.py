@@ -43,10 +43,10 @@ from .metrics import (
     ground_truth_sigma,
     procrustes_rotation,
 )
-from .reconstruct import Reconstruction, reconstruct
+from .reconstruct import Reconstruction, reconstruct, trace_norm_heuristic
 from .reprojection import OrthographicReprojection, reprojection_error, tnh_energy
 from .selection import TNHTauSelection, select_tnh_tau, visibility_folds
-from .tnh import TNHResult, TNHSolveError, trace_norm_heuristic
+from .tnh import TNHResult, TNHSolveError
 from .variables import CameraFrameVariables
 
 __all__ = [

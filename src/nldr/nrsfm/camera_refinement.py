@@ -45,9 +45,9 @@ import numpy as np
 
 from .._validation import check_count, check_positive
 from ..result import SolverResult, status_from
-from .fista import fista_tnh
 from .reprojection import check_cameras, check_shapes, check_tracks, masked_residual, visibility_weights
 from .rotations import camera_to_quaternion, nearest_orthonormal_rows, quaternion_rotation
+from .tnh import fista_tnh
 
 __all__ = [
     "CameraShapeResult",

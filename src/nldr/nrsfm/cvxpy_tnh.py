@@ -36,7 +36,7 @@ except ImportError as exc:  # pragma: no cover - exercised by tests with cvxpy h
 from .._validation import check_positive
 from ..result import CONVERGED, INACCURATE
 from .reprojection import OrthographicReprojection
-from .tnh_result import TNHResult, TNHSolveError, fit_summary
+from .tnh import TNHResult, TNHSolveError, fit_summary
 
 __all__ = ["DEFAULT_SOLVER_OPTIONS", "CvxpyTNH"]
 

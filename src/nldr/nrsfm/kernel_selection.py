@@ -19,7 +19,7 @@ import pandas as pd
 
 from .._cv import positive_grid
 from .._validation import check_count, check_positive
-from .reconstruct import WIDTH_RULES
+from .reconstruct import WIDTH_RULES, trace_norm_heuristic
 from .reprojection import check_cameras, check_tracks
 from .selection import (
     TNHTauSelection,
@@ -29,7 +29,6 @@ from .selection import (
     search_points,
     visibility_folds,
 )
-from .tnh import trace_norm_heuristic
 
 __all__ = [
     "DEFAULT_KERNEL_TAUS",

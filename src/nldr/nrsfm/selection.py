@@ -43,9 +43,8 @@ from .._validation import check_count, check_positive
 from ..model_selection import HoldoutSearch
 from ..regularizer import minimize_regularized
 from .factorization import initialize_cameras
-from .reconstruct import WIDTH_RULES, Reconstruction, reconstruct, solver_arguments
+from .reconstruct import WIDTH_RULES, Reconstruction, reconstruct, solver_arguments, trace_norm_heuristic
 from .reprojection import OrthographicReprojection, check_tracks
-from .tnh import trace_norm_heuristic
 from .variables import CameraFrameVariables
 
 __all__ = [
