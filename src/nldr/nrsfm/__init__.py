@@ -26,13 +26,13 @@ Every solver result derives from :class:`nldr.result.SolverResult` (``x``, ``fun
 
 from .factorization import initialize_cameras
 from .joint_kernel import kernel_energy
-from .kernel_selection import KernelSelection, select_kernel
 from .layout import (
     cameras_from_stack,
     cameras_to_stack,
     random_visibility_mask,
     rows_to_stack,
     stack_to_rows,
+    visibility_folds,
 )
 from .metrics import (
     camera_error,
@@ -45,7 +45,7 @@ from .metrics import (
 )
 from .reconstruct import Reconstruction, reconstruct, trace_norm_heuristic
 from .reprojection import OrthographicReprojection, reprojection_error, tnh_energy
-from .selection import TNHTauSelection, select_tnh_tau, visibility_folds
+from .selection import KernelSelection, TNHTauSelection, select_kernel, select_tnh_tau
 from .tnh import TNHResult, TNHSolveError
 from .variables import CameraFrameVariables
 
