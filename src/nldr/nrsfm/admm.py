@@ -57,7 +57,7 @@ import numpy as np
 
 from .._validation import as_float_matrix, check_count, check_positive
 from ..result import CONVERGED, MAX_ITER
-from .reprojection import OrthographicReprojection
+from .reprojection import OrthographicReprojection, check_shapes
 from .tnh import TNHResult, fit_summary, soft_threshold_singular_values_gram
 
 __all__ = ["RobustTNHResult", "solve_admm", "robust_trace_norm_heuristic", "robust_tnh_objective"]
@@ -343,9 +343,7 @@ class _Splitting:
         if X0 is None:
             Z = self.offset.reshape(self.shape).copy()
         else:
-            X0 = as_float_matrix(X0, "X0")
-            if X0.shape != (F, 3 * P):
-                raise ValueError(f"X0 must have shape (F, 3P) = {(F, 3 * P)}; got {X0.shape}")
+            X0 = check_shapes(X0, F, P, name="X0")
             Z = np.zeros(self.shape3)
             Z[:, :3] = X0.reshape(F, 3, P) / self.scale
             Z = Z.reshape(self.shape)

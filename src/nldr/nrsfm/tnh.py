@@ -37,9 +37,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._spectral import shrink_singular_values
-from .._validation import as_float_matrix, check_count, check_positive
+from .._validation import check_count, check_positive
 from ..result import SolverResult, status_from
-from .reprojection import OrthographicReprojection, masked_residual, visibility_weights
+from .reprojection import OrthographicReprojection, check_shapes, masked_residual, visibility_weights
 
 __all__ = [
     "GRAM_SAFETY",
@@ -338,9 +338,7 @@ def solve_fista(
     F, P = term.n_frames, term.n_points
     X, x_nuclear = np.zeros((F, 3, P)), 0.0
     if X0 is not None:
-        X = as_float_matrix(X0, "X0")
-        if X.shape != term.shape:
-            raise ValueError(f"X0 must have shape (F, 3P) = {term.shape}; got {X.shape}")
+        X = check_shapes(X0, F, P, name="X0")
         x_nuclear = float(np.linalg.svd(X, compute_uv=False).sum())
         X = X.reshape(F, 3, P)
     out = fista_tnh(
