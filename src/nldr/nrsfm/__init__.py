@@ -32,9 +32,9 @@ from .metrics import (
 )
 from .reconstruct import Reconstruction, reconstruct, trace_norm_heuristic
 from .reprojection import OrthographicReprojection, reprojection_error, tnh_energy
+from .rotations import CameraFrameVariables
 from .selection import KernelSelection, TNHTauSelection, select_kernel, select_tnh_tau
 from .tnh import TNHResult, TNHSolveError
-from .variables import CameraFrameVariables
 
 __all__ = [
     "reconstruct",

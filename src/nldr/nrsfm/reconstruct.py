@@ -42,8 +42,8 @@ from .camera_search import tnh_camera_search
 from .factorization import initialize_cameras
 from .joint_kernel import joint_kernel_multistart
 from .reprojection import OrthographicReprojection, check_cameras, check_tracks, reprojection_error
+from .rotations import CameraFrameVariables
 from .tnh import TNHResult, solve_fista
-from .variables import CameraFrameVariables
 
 __all__ = [
     "WIDTH_RULES",
