@@ -48,6 +48,36 @@ def nuclear_norm(X) -> float:
     return float(np.linalg.svd(X, compute_uv=False).sum())
 
 
+def alternate(W2d, mask, R0, shape_step, *, max_outer=20, tol=1e-4, window=1):
+    """A shape step ``R (F, 2, 3) -> X (F, 3P)`` alternated with the library's camera LM (100
+    iterations a step) until the reprojection error falls by less than ``tol`` (relative) over
+    ``window`` iterations: the rigid bundle adjustment of the camera tests, and the kernel alternation
+    the joint step is compared with. ``history`` / ``shape_history``: the error after each camera /
+    shape step."""
+    from types import SimpleNamespace
+
+    from nldr.nrsfm.camera_refinement import camera_lm
+    from nldr.nrsfm.reprojection import check_tracks
+    from nldr.nrsfm.rotations import camera_to_quaternion, nearest_orthonormal_rows
+
+    W, mask = check_tracks(W2d, mask)
+    F, P = mask.shape
+    W3 = W.reshape(F, 2, P)
+    R = nearest_orthonormal_rows(R0)
+    q = camera_to_quaternion(R)
+    history, shape_history = [], []
+    for k in range(1, max_outer + 1):
+        X = shape_step(R.copy())
+        S = X.reshape(F, 3, P)
+        E = mask[:, None, :] * (W3 - R @ S)
+        shape_history.append(float(np.vdot(E, E)))
+        q, R, _, cost, _, _, _ = camera_lm(W3, mask, q, S, 100)
+        history.append(float(cost.sum()))
+        if k > window and history[-1 - window] - history[-1] < tol * history[-1 - window]:
+            break
+    return SimpleNamespace(x=X, R=R, nit=k, history=np.array(history), shape_history=np.array(shape_history))
+
+
 def synthetic_sequence(n_frames=12, n_points=9, rank=2, seed=0):
     """Shapes from a rank-`rank` linear basis around a mean shape, random rotation cameras, exact tracks.
 

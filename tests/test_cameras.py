@@ -13,13 +13,13 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from conftest import project, random_rotation
+from conftest import alternate, project, random_rotation
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from nldr.datasets import load_mocap
 from nldr.experiments.table4 import tune_tau
-from nldr.nrsfm.camera_refinement import camera_lm, refine_cameras_and_shapes, tnh_with_camera_refinement
+from nldr.nrsfm.camera_refinement import camera_lm, tnh_with_camera_refinement
 from nldr.nrsfm.factorization import initialize_cameras, metric_upgrade, rigid_factorization
 from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
 from nldr.nrsfm.metrics import (
@@ -31,7 +31,7 @@ from nldr.nrsfm.metrics import (
 )
 from nldr.nrsfm.reprojection import OrthographicReprojection, check_tracks, reprojection_error
 from nldr.nrsfm.rotations import camera_to_quaternion, nearest_orthonormal_rows, quaternion_rotation
-from nldr.result import CONVERGED, MAX_ITER
+from nldr.result import CONVERGED
 
 # ---------------------------------------------------------------------------------------------------------
 # helpers
@@ -455,9 +455,8 @@ def test_rigid_bundle_adjustment_reaches_zero_error_monotonically(missing):
     mask = random_visibility_mask(F, P, missing, random_state=18)
     R0 = perturb_cameras(R_true, 10.0, np.random.default_rng(18))
     Wh = hide(W, mask)
-    res = refine_cameras_and_shapes(Wh, mask, R0, rigid_shape_step(Wh, mask), max_outer=300, tol=1e-12)
-    assert res.nit == res.history.size == res.shape_history.size and res.energy_history is None
-    assert res.fun == res.history[-1]  # without a penalty the reprojection error is monitored
+    res = alternate(Wh, mask, R0, rigid_shape_step(Wh, mask), max_outer=300, tol=1e-12)
+    assert res.nit == res.history.size == res.shape_history.size
     # e(R_{k-1}, X_k) <= e(R_{k-1}, X_{k-1}) (the shape step is a least-squares solve, up to its 1e-12
     # relative ridge) and e(R_k, X_k) <= e(R_{k-1}, X_k) (the LM only accepts decreases); the slack is
     # a few hundred ulps of the cost's scale ||W||^2
@@ -472,30 +471,6 @@ def test_rigid_bundle_adjustment_reaches_zero_error_monotonically(missing):
     assert res.history[-1] <= 1e-14 * scale
     assert reprojection_error(W, mask, res.R, res.x) == pytest.approx(res.history[-1], rel=1e-9, abs=1e-25)
     assert camera_error(res.R, R_true) < 1e-6  # degrees
-
-
-def test_refine_cameras_and_shapes_penalty_callback_and_stopping():
-    """The callback sees k = 1..nit; energy_history = penalty(X_k) + history; tol stops the loop."""
-    W, R_true, _, _ = rigid_scene(seed=19)
-    R0 = perturb_cameras(R_true, 5.0, np.random.default_rng(19))
-    seen, shapes = [], []
-
-    def callback(k, R, X):
-        seen.append(k)
-        shapes.append(X)
-
-    res = refine_cameras_and_shapes(
-        W, None, R0, rigid_shape_step(W), max_outer=50, tol=1e-2, penalty=lambda X: 0.5, callback=callback
-    )
-    assert seen == list(range(1, res.nit + 1))
-    np.testing.assert_allclose(res.energy_history, 0.5 + res.history, rtol=1e-15)
-    np.testing.assert_array_equal(shapes[-1], res.x)
-    assert res.success and res.status == CONVERGED and res.nit < 50
-    assert res.fun == res.energy_history[-1]  # the monitored quantity: the joint energy
-    assert "relative decrease" in res.message
-    capped = refine_cameras_and_shapes(W, None, R0, rigid_shape_step(W), max_outer=2, tol=1e-12)
-    assert capped.nit == 2 and capped.status == MAX_ITER and not capped.success
-    assert "max_outer" in capped.message
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -559,33 +534,28 @@ def _bad_input_cases():
     sparse = np.zeros((3, 10), dtype=bool)
     sparse[:, :4] = True  # 3 frames x 4 points: 24 coordinates < 3P = 30 unknowns
     W_sparse = rigid_scene(n_frames=3, n_points=10, seed=22)[0]
-    step = rigid_shape_step(W)
+
+    def alternation(W2d=W, mask=None, R0=R, **options):
+        return tnh_with_camera_refinement(W2d, mask, R0, 1.0, **options)
+
     cases = [
         ("odd columns", lambda: initialize_cameras(W[:, :-1]), "W2d"),
-        ("odd columns alternation", lambda: refine_cameras_and_shapes(W[:, :-1], None, R, step), "W2d"),
+        ("odd columns alternation", lambda: alternation(W[:, :-1]), "W2d"),
         ("NaN observed", lambda: initialize_cameras(W_nan), "W2d"),
-        ("NaN observed alternation", lambda: refine_cameras_and_shapes(W_nan, None, R, step), "W2d"),
+        ("NaN observed alternation", lambda: alternation(W_nan), "W2d"),
         ("not numeric", lambda: initialize_cameras("tracks"), "W2d"),
         ("mask shape", lambda: initialize_cameras(W, few[:, :-1]), "mask"),
         ("< 3 points init", lambda: initialize_cameras(W, few), "mask"),
-        ("< 3 points alternation", lambda: refine_cameras_and_shapes(W, few, R, step), "mask"),
+        ("< 3 points alternation", lambda: alternation(mask=few), "mask"),
         ("too few observations", lambda: rigid_factorization(W_sparse, sparse), "mask"),
-        ("R0 not 2x3", lambda: refine_cameras_and_shapes(W, None, R[:, :, :2], step), "R0"),
-        ("R0 frame count", lambda: refine_cameras_and_shapes(W, None, R[:-1], step), "R0"),
-        ("R0 stacked", lambda: refine_cameras_and_shapes(W, None, R.reshape(-1, 3), step), "R0"),
-        ("shape_step not callable", lambda: refine_cameras_and_shapes(W, None, R, "tnh"), "shape_step"),
-        (
-            "shape_step output",
-            lambda: refine_cameras_and_shapes(W, None, R, lambda R: X[:, :-1]),
-            "shape_step",
-        ),
-        ("penalty", lambda: refine_cameras_and_shapes(W, None, R, step, penalty=1.0), "penalty"),
+        ("R0 not 2x3", lambda: alternation(R0=R[:, :, :2]), "R0"),
+        ("R0 frame count", lambda: alternation(R0=R[:-1]), "R0"),
+        ("R0 stacked", lambda: alternation(R0=R.reshape(-1, 3)), "R0"),
         ("M shape", lambda: metric_upgrade(np.zeros((4, 3, 3))), "M"),
         ("A shape", lambda: nearest_orthonormal_rows(np.zeros((2, 3))), "A"),
     ]
     for v in (0, -1, 2.5, True, None):
-        call = lambda v=v: refine_cameras_and_shapes(W, None, R, step, max_outer=v)  # noqa: E731
-        cases.append((f"max_outer={v!r}", call, "max_outer"))
+        cases.append((f"max_outer={v!r}", lambda v=v: alternation(max_outer=v), "max_outer"))
     return [pytest.param(call, name, id=label) for label, call, name in cases]
 
 
@@ -637,7 +607,7 @@ def test_real_data_pickup_camera_initialisation_and_rigid_refinement(data_dir):
     # Only the reprojection error is asserted below: the rigid bundle adjustment fits the tracks better
     # but moves these cameras further from the truth (measured 32.7 degrees after it).
     step = rigid_shape_step(W)
-    res = refine_cameras_and_shapes(W, None, R0, step)
+    res = alternate(W, None, R0, step)
     start = reprojection_error(W, None, R0, step(R0))  # measured 214.4 (track unit squared)
     assert res.shape_history[0] == pytest.approx(start, rel=1e-12)
     interleaved = np.column_stack([res.shape_history, res.history]).ravel()
@@ -685,7 +655,7 @@ def test_every_nrsfm_solver_result_is_a_solver_result():
     """x, fun, status, message, nit and wall_time everywhere; success means status CONVERGED; the repr
     is one line."""
     from nldr.nrsfm import trace_norm_heuristic
-    from nldr.nrsfm.fista import fista_tnh
+    from nldr.nrsfm.tnh import fista_tnh
     from nldr.result import STATUS_NAMES, SolverResult
 
     W, R_true, X = deforming_scene(n_frames=8, n_points=9, seed=41)
@@ -697,7 +667,6 @@ def test_every_nrsfm_solver_result_is_a_solver_result():
         trace_norm_heuristic(W, R_true, tau=1.0, method="fista"),
         fista_tnh(W3, None, R_true, np.zeros((F, 3, P)), 0.0, 1.0, 50, 1e-10),
         rigid_factorization(W),
-        refine_cameras_and_shapes(W, None, R0, rigid_shape_step(W), max_outer=3),
         tnh_with_camera_refinement(W, None, R0, 1.0, max_outer=3),
         tune_tau(lambda tau: (np.log10(tau) - 0.5) ** 2, xatol=0.1),
     ]

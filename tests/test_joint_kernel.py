@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import project, random_rotation
+from conftest import alternate, project, random_rotation
 from scipy.spatial.transform import Rotation
 
 from nldr.data_terms import Huber
 from nldr.kernels import d_med_width
-from nldr.nrsfm.camera_refinement import refine_cameras_and_shapes
 from nldr.nrsfm.joint_kernel import joint_value_grad, kernel_energy, solve_joint_kernel
 from nldr.nrsfm.layout import random_visibility_mask
 from nldr.nrsfm.metrics import center_per_frame
@@ -137,7 +136,7 @@ def test_joint_step_moves_the_cameras_the_alternation_leaves_in_place():
         state["X"] = minimize_regularized(term, state["X"], gamma=gamma, tau=tau, **schedule).x
         return state["X"]
 
-    alt = refine_cameras_and_shapes(W, None, R0, kernel_shape_step, max_outer=5, tol=1e-4, window=3)
+    alt = alternate(W, None, R0, kernel_shape_step, max_outer=5, tol=1e-4, window=3)
     joint = solve_joint_kernel(W, None, R0, X0, gamma=gamma, tau=tau, **schedule)
     e_alt = kernel_energy(W, None, alt.R, alt.x, gamma=gamma, tau=tau, rho=10.0)
     assert joint.fun < e_alt

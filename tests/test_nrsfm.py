@@ -10,6 +10,7 @@ import pytest
 from conftest import nuclear_norm, project, random_rotation, synthetic_sequence
 
 from nldr.data_terms import DataTerm
+from nldr.nrsfm import TNHSolveError, trace_norm_heuristic
 from nldr.nrsfm.cvxpy_tnh import CvxpyTNH
 from nldr.nrsfm.layout import (
     cameras_from_stack,
@@ -20,7 +21,6 @@ from nldr.nrsfm.layout import (
 )
 from nldr.nrsfm.metrics import center_per_frame, e3d, e3d_per_frame, ground_truth_sigma, procrustes_rotation
 from nldr.nrsfm.reprojection import OrthographicReprojection
-from nldr.nrsfm.tnh import TNHSolveError, trace_norm_heuristic
 from nldr.result import CONVERGED, MAX_ITER
 
 # ---------------------------------------------------------------------------------------------------------

@@ -7,8 +7,8 @@ import pytest
 from conftest import synthetic_sequence
 
 from nldr.nrsfm import OrthographicReprojection, trace_norm_heuristic
+from nldr.nrsfm.admm import RobustTNHResult, robust_tnh_objective, robust_trace_norm_heuristic
 from nldr.nrsfm.layout import random_visibility_mask
-from nldr.nrsfm.robust_tnh import RobustTNHResult, robust_tnh_objective, robust_trace_norm_heuristic
 from nldr.result import CONVERGED, SolverResult
 
 cp = pytest.importorskip("cvxpy")

@@ -4,8 +4,8 @@ Three changes make :func:`~nldr.nrsfm.camera_refinement.tnh_with_camera_refineme
 here against the slow-but-plain path it replaces:
 
 1. Singular value thresholding through the Gram matrix of the short side
-   (:func:`~nldr.nrsfm.svt.soft_threshold_singular_values_gram`) instead of a full SVD
-   (:func:`~nldr.nrsfm.svt.soft_threshold_singular_values`).
+   (:func:`~nldr.nrsfm.tnh.soft_threshold_singular_values_gram`) instead of a full SVD
+   (:func:`~nldr.nrsfm.tnh.soft_threshold_singular_values`).
 2. The camera LM's normal equations from 3x3 and 3x2 summaries of each frame
    (:func:`~nldr.nrsfm.camera_refinement.lm_normal_equations`) instead of the explicit Jacobian.
 3. The shape step's FISTA tolerance follows the alternation's progress (loose while the joint energy
@@ -35,11 +35,11 @@ import nldr.nrsfm.camera_refinement as cr
 from nldr.nrsfm import trace_norm_heuristic
 from nldr.nrsfm.camera_refinement import lm_normal_equations, tnh_alternation, tnh_with_camera_refinement
 from nldr.nrsfm.factorization import initialize_cameras
-from nldr.nrsfm.fista import fista_tnh
 from nldr.nrsfm.metrics import center_per_frame, e3d, procrustes_rotation
 from nldr.nrsfm.rotations import quaternion_rotation
-from nldr.nrsfm.svt import (
+from nldr.nrsfm.tnh import (
     GRAM_SAFETY,
+    fista_tnh,
     soft_threshold_singular_values,
     soft_threshold_singular_values_gram,
 )

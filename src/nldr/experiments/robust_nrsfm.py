@@ -7,7 +7,7 @@ on the tracks W (F, 2P): a random sign times 3-6 standard deviations of that coo
 shares are nested). Each method sees only the corrupted tracks; rows per (share, job):
 
 - ``TNH``: the exact-fit trace-norm heuristic (Table 3's linear baseline), least squares in the limit;
-- ``TNH (robust)``: :func:`nldr.nrsfm.robust_tnh.robust_trace_norm_heuristic`, tau ||X||_* + l1
+- ``TNH (robust)``: :func:`nldr.nrsfm.admm.robust_trace_norm_heuristic`, tau ||X||_* + l1
   reprojection error, tau = ``tau_factor`` x sqrt(max(F, 3P)) (the robust-PCA scaling of Candes et
   al.: the l1 term sums F x 2P entries, the nuclear norm at most min(F, 3P) singular values);
 - ``Kernel (LS)``: Table 3's kernel method (tau, width rule and schedule of Table 3) from the TNH shapes;

@@ -34,7 +34,7 @@ from threadpoolctl import threadpool_limits
 
 from .. import paper as paper_numbers
 from ..nrsfm import e3d, random_visibility_mask, reconstruct, select_kernel, select_tnh_tau, stack_to_rows
-from ..nrsfm.kernel_selection import PAPER_KERNEL
+from ..nrsfm.selection import PAPER_KERNEL
 from ..paper import paper_frame
 from ..tables import attach_paper
 from .base import Job, JobOutput, summary_stats

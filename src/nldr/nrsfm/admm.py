@@ -1,117 +1,95 @@
-"""Exact-fit trace-norm heuristic (TNH) by ADMM: the default backend of
-:func:`~nldr.nrsfm.tnh.trace_norm_heuristic` (``method="admm"``), for sequences of any length.
+"""TNH by ADMM with known cameras: the exact fit (:func:`solve_admm`, the default backend of
+:func:`~nldr.nrsfm.trace_norm_heuristic`) and the robust TNH (:func:`robust_trace_norm_heuristic`),
+one loop whose only difference is the residual block.
 
-Problem (the paper's eq. 12 in its tau -> 0 limit, known cameras; see :mod:`nldr.nrsfm.tnh`)::
+Problems (shapes as rows X (F, 3P), tracks W (F, 2P), cameras R (F, 2, 3), visibility (F, P); A X the
+observed projections, b the observed tracks)::
 
-    min_X ||X||_*   subject to   R_f s_f(x_j) = w_f(x_j)   for every observed (f, j)
+    exact fit:   min_X ||X||_*                       subject to  A X = b
+    robust:      min_X tau ||X||_* + ||b - A X||_1    (an l1 reprojection term, for gross errors)
 
-with shapes as rows X (F, 3P), image tracks W (F, 2P), cameras R (F, 2, 3) and a visibility mask
-(F, P). Write C for the affine set of shape matrices that reproject exactly onto the observed tracks.
+The robust problem is written with a residual block e: ``min ||X||_* + ||e||_1 / tau  s.t.  A X + e =
+b`` (its objective over tau). Without e it is the exact fit. Both are ``min i_C(x) + g(z)  s.t.  x =
+z`` with x = X (exact) or x = (X, e) (robust, per point the 3 shape rows stacked over the 2 residual
+rows), C the affine set of the constraints and g the nuclear norm (plus ||e||_1 / tau). ADMM in scaled
+form with the multiplier Y = beta U, relaxation alpha and penalty beta::
 
-Why this module exists
-----------------------
-cvxpy hands ||X||_* to a conic solver as a semidefinite cone of order F + 3P. SCS is slow on drink
-sampled every 10th frame (F = 111) and cannot handle the full sequence (F = 1102): the cone and its
-eigendecompositions grow with F. Two facts make a dedicated solver cheap: the constraints act
-on each (frame, point) block s_f(x_j) in R^3 separately, so projecting onto C is a 3x3 operation per
-block, and the proximal operator of the nuclear norm is singular value thresholding of an F x 3P
-matrix whose thin SVD costs O(F (3P)^2) -- linear in F.
+    x <- P_C(z - U)                     projection onto C, one small solve per (frame, point)
+    h <- alpha x + (1 - alpha) z        relaxed iterate
+    z <- prox_{g / beta}(h + U)         singular value thresholding (and soft-thresholding of e)
+    U <- U + h - z
 
-Algorithm
----------
-ADMM on the splitting ``min  i_C(X) + ||Z||_*  s.t.  X = Z`` (i_C the indicator of C), in scaled
-form with the multiplier Y = beta U of X = Z, relaxation parameter alpha (over-relaxation for
-alpha > 1; Eckstein & Bertsekas 1992) and penalty beta > 0::
+P_C decouples per (frame, point): with B_f = R_f (exact) or [R_f, I_2] (robust), an observed block
+moves to N_f v + B_f^+ w_f(x_j), N_f = I - B_f^+ B_f the projector onto the null space of B_f; an
+unobserved block keeps its shape rows and has e = 0. A rank-deficient camera is handled through its
+pseudo-inverse (singular values below 1e-10 of the largest count as zero); if an observed point is
+then not reachable, the exact fit is infeasible and a ValueError names the frame.
 
-    X <- P_C(Z - U)                        projection onto the constraints
-    H <- alpha X + (1 - alpha) Z           relaxed iterate
-    Z <- SVT_{1/beta}(H + U)               prox of ||.||_* / beta: soft-threshold singular values
-    U <- U + H - Z
-
-P_C decouples per (frame, point): an observed block moves to the nearest exact reprojection,
-s <- s - R_f^+ (R_f s - w_f(x_j)) = N_f s + R_f^+ w_f(x_j) with the pseudo-inverse R_f^+ and the
-projector N_f = I - R_f^+ R_f onto the null space of R_f (the viewing direction); an unobserved block
-is unconstrained and left alone. N_f and R_f^+ w are precomputed, so an X-update is one einsum. A
-rank-deficient camera is handled through its pseudo-inverse (singular values below 1e-10 of the
-largest are treated as zero); if some observed point is then not reachable (no exact fit exists)
-the problem is infeasible and a ValueError says which frame.
-
-The problem is solved in normalised units (tracks divided by their RMS over the observed entries),
-in which beta = 1 is a sensible start; beta is then adapted by residual balancing (He, Yang & Wang
-2000; Boyd et al. 2011, sec. 3.4.1): every 10 iterations, if the relative primal residual exceeds
-twice the relative dual residual beta doubles, in the opposite case it halves (U is rescaled so that
-Y is unchanged; residuals defined below). The threshold 2 instead of the customary 10 needs fewer
-iterations on the slowest full-length sequences (yoga, pickup; benchmarks/bench_tnh_admm.py).
-Adaptation stops after 50 changes, after which the fixed-penalty convergence theory applies.
+The problem is solved in normalised units (tracks divided by their RMS over the observed entries; both
+objectives are positively homogeneous in the tracks) with beta = 1 as start, adapted by residual
+balancing (He, Yang & Wang 2000; Boyd et al. 2011, sec. 3.4.1): every 10 iterations beta doubles when
+the relative primal residual exceeds twice the relative dual residual, and halves in the opposite
+case (U rescaled so that Y is unchanged); at most 50 changes (docs/PERFORMANCE.md).
 
 Optimality certificate and stopping rule
 ----------------------------------------
-X is optimal iff it is feasible and some Y satisfies both Y in d||X||_* (the subdifferential) and
-Y in range(A^T), the row space of the constraint operator A (i.e. Y vanishes on unobserved blocks and
-is orthogonal to the viewing direction of every observed block). The iterates deliver these up to
-two residuals: X is feasible by construction, Y = beta U is a subgradient of ||.||_* at Z (the prox
-step guarantees it; :func:`~nldr.nrsfm.svt.soft_threshold_singular_values_gram`, whose right singular
-vectors near the threshold are orthogonal only to O(eps s_max^2 / t^2), at most GRAM_SAFETY = 1e-4, as
-it falls back to the full SVD beyond; on Table 3's eight problems it gave the full SVD's iterations,
-nuclear norms to 10 digits and X to 6e-12 relative, 1.4-1.6x less CPU), so what remains is
-
-- primal residual ``r = ||X - Z||_F``  (how far the feasible X is from the point Y certifies),
-- dual residual   ``s = ||P_null(Y)||_F``, the distance of Y from range(A^T) (P_null applies N_f to
-  observed blocks and keeps unobserved blocks).
-
-The solver stops when ``r <= tol max(||X||_F, ||Z||_F)``, ``s <= tol ||Y||_F`` (||Y||_F >= 1 for any
-subgradient at a non-zero Z) **and** the relative duality gap is at most tol. The gap is rigorous:
-Y_r = P_range(Y) lies in range(A^T), so Y_r / max(1, ||Y_r||_2) = A^T lambda is feasible for the dual
-``max <b, lambda> s.t. ||A^T lambda||_2 <= 1`` and its value <b, lambda> = <X, A^T lambda> (X is
-feasible) bounds the optimum from below, while ||X||_* bounds it from above. Hence at termination
-
-    ||X||_* - OPT  <=  gap  <=  tol ||X||_*,
-
-i.e. the nuclear norm of the returned X is within a relative tol / (1 - tol) of the optimum. The gap
-needs two extra SVDs (singular values only) and is evaluated only when the residual tests pass.
-
-Default tol = 1e-6 (benchmarks/bench_tnh_admm.py, results/benchmarks/tnh_admm.csv). On the paper's
-four sequences sampled every 10th frame (full data and 50% missing) e3D agrees with SCS at eps 1e-6
-(the cvxpy backend's default) to 2e-6, except drink with full data (7e-5). Caveat, measured: on some problems
-the optimum is so flat that the nuclear norm hardly pins X down. On drink every 10th frame, full data,
-two long ADMM runs ended at nuclear norms equal to 3e-10 (relative) with X 0.2% apart and e3D 0.0225
-against 0.0233; runs stopped at tol 1e-6 with different penalty settings gave e3D 0.0221 ... 0.0234
-(SCS: 0.0221). On full-length pickup (full data) and drink (50% missing) the residual-balancing
-threshold alone moved e3D by 5e-4 at tol 1e-6, while tol 1e-7 reproduced the better run. So the e3D
-of exact-fit TNH is determined to a few 1e-4 at tol 1e-6; pass tol=1e-7 (more iterations) when that
-matters.
-
-The returned X is the X-iterate, feasible to rounding whatever the number of iterations.
+x is optimal iff it is in C and some Y lies both in dg(z = x) and in the row space of the constraints,
+range(B^T). The iterates deliver the subgradient by the prox step, so what remains are the primal
+residual ``r = ||x - z||_F`` and the dual residual ``s = ||P_null(Y)||_F`` (its distance from
+range(B^T)). The solver stops when ``r <= tol max(||x||, ||z||)``, ``s <= tol ||Y||`` **and** the relative
+duality gap is at most tol. The gap is rigorous: Y_r = P_range(Y) = B^T lambda, scaled into the dual's
+feasible set, bounds the optimum from below by its dual value <b, lambda>. Exact fit: the dual is
+``max <b, lambda>  s.t.  ||A^T lambda||_2 <= 1`` and the upper bound is ||X||_* of the feasible x.
+Robust: the dual adds ``|lambda_i| <= 1 / tau`` and the upper bound is the objective at the low-rank z,
+which is returned (the problem is unconstrained in X). At termination the returned objective exceeds
+the optimum by at most a relative tol / (1 - tol). The gap needs two extra SVDs and is evaluated only
+when the residual tests pass. The exact fit's tol = 1e-6 determines TNH's e3D to a few 1e-4
+(docs/REPRODUCTION.md#table-3-tnh; pass tol=1e-7 when that matters).
 """
 
 from __future__ import annotations
 
 import time
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 
 from .._validation import as_float_matrix, check_count, check_positive
 from ..result import CONVERGED, MAX_ITER
-from .reprojection import OrthographicReprojection
-from .svt import soft_threshold_singular_values_gram
-from .tnh_result import TNHResult, fit_summary
+from .reprojection import OrthographicReprojection, check_shapes
+from .tnh import TNHResult, fit_summary, soft_threshold_singular_values_gram
 
-__all__ = [
-    "solve_admm",
-    "check_admm_options",
-    "balancing_factor",
-    "track_scale",
-    "options_record",
-    "ADAPT_MAX_CHANGES",
-]
+__all__ = ["RobustTNHResult", "solve_admm", "robust_trace_norm_heuristic", "robust_tnh_objective"]
 
 _RCOND = 1e-10  # relative cut-off of camera singular values in the pseudo-inverse
 _ADAPT_EVERY = 10  # iterations between residual-balancing checks
 _ADAPT_MU = 2.0  # balance when one relative residual exceeds mu times the other
 _ADAPT_FACTOR = 2.0
-ADAPT_MAX_CHANGES = 50
+_ADAPT_MAX_CHANGES = 50
 _FEASIBILITY_RTOL = 1e-9  # exact-fit residual tolerance (relative to the track scale) of a singular camera
+
+
+@dataclass(kw_only=True, repr=False)
+class RobustTNHResult(TNHResult):
+    """Result of :func:`robust_trace_norm_heuristic`, a :class:`~nldr.nrsfm.TNHResult`.
+
+    ``x`` (F, 3P) the shapes in the unit of the tracks; ``fun`` the objective tau ||X||_* + the l1
+    reprojection error at ``x`` (unit of the tracks); ``method="admm_l1"``, ``solver="ADMM"``,
+    ``exact_fit=False``; ``dual`` the dual-feasible multiplier mu of the residuals, shape (F, 2P) with
+    zeros at unobserved entries (dimensionless, |mu| <= 1, ||A^T mu||_2 <= tau); ``duality_gap``
+    ``fun`` minus the certified lower bound (unit of the tracks).
+
+    Attributes
+    ----------
+    l1_error : float
+        Sum of absolute reprojection residuals over the observed coordinates (unit of the tracks).
+    lower_bound : float
+        Certified lower bound on the optimal objective, <mu, b> (unit of the tracks).
+    """
+
+    l1_error: float
+    lower_bound: float
 
 
 def solve_admm(
@@ -129,30 +107,24 @@ def solve_admm(
     """Exact-fit TNH ``min ||X||_* s.t. exact reprojection of the observed points`` by ADMM.
 
     The backend of ``trace_norm_heuristic(W2d, R, mask, method="admm", **options)``, which validates
-    the tracks (unobserved entries may be NaN), cameras (rows need not be orthonormal; a rank-deficient
-    camera is handled by its pseudo-inverse) and mask into ``term``. See the module docstring for the
-    algorithm, the optimality certificate and the stopping rule.
+    the tracks, cameras (rows need not be orthonormal) and mask into ``term``. See the module docstring
+    for the algorithm, the certificate and the stopping rule.
 
     Parameters
     ----------
     term : OrthographicReprojection
         Tracks, cameras and visibility.
     tol : float in (0, 1), default 1e-6
-        Relative tolerance of the primal residual, the dual residual and the duality gap; at
-        ``status == CONVERGED`` the returned ||X||_* exceeds the optimum by at most a relative
-        ``tol / (1 - tol)``.
+        Relative tolerance of the primal residual, the dual residual and the duality gap.
     max_iter : int, default 50000
         Iteration cap; reaching it gives ``status == MAX_ITER`` and a RuntimeWarning.
     beta : float > 0, optional
-        Initial ADMM penalty in normalised units (tracks divided by their RMS); default 1.0.
+        Initial penalty in normalised units (tracks divided by their RMS); default 1.0.
     X0 : array, shape (F, 3P), optional
-        Warm start for Z (e.g. a previous solution, unit of the tracks); default the least-norm
-        exact fit (unobserved blocks zero).
+        Warm start for Z (unit of the tracks); default the least-norm exact fit.
     Y0 : array, shape (F, 3P), optional
-        Warm start for the multiplier Y (dimensionless; e.g. ``result.dual`` of a previous solve);
-        default zeros. A warm start from a previous solution needs both X0 and Y0 (and ideally
-        ``beta=result.options["final_beta"]``): with X0 alone the multiplier is rebuilt from
-        scratch and hardly any iterations are saved.
+        Warm start for the multiplier Y (dimensionless, e.g. ``result.dual``); default zeros. A warm
+        start from a previous result needs X0, Y0 and ideally ``beta=result.options["final_beta"]``.
     relaxation : float in (0, 2), default 1.6
         Relaxation parameter alpha (1 = plain ADMM).
     adaptive : bool, default True
@@ -163,19 +135,15 @@ def solve_admm(
     Returns
     -------
     TNHResult
-        ``x`` (F, 3P) in the unit of the tracks, feasible to rounding; ``method="admm"``,
-        ``solver="ADMM"``, ``tau=0.0``, ``exact_fit=True``, ``fun = nuclear_norm`` (||X||_*, unit of
-        the tracks), ``reprojection_error`` (unit squared), ``max_abs_residual`` (unit), ``dual`` (the
-        multiplier Y (F, 3P), dimensionless, ||Y||_2 <= 1), ``duality_gap`` (||X||_* minus a certified
-        lower bound on the optimum, unit of the tracks) and ``options`` (the options used, plus
-        ``final_beta``, the adapted penalty).
+        ``x`` (F, 3P) in the unit of the tracks, feasible to rounding; ``method="admm"``, ``tau=0.0``,
+        ``exact_fit=True``, ``fun = nuclear_norm``; ``dual`` the multiplier Y (F, 3P), ``duality_gap``
+        (unit of the tracks), ``options`` with ``final_beta``.
 
     Raises
     ------
     ValueError
         For tol outside (0, 1), max_iter not a positive integer, beta <= 0, relaxation outside (0, 2),
-        X0 or Y0 of the wrong shape or not finite, and when no exact fit exists (an observed point
-        outside the range of a rank-deficient camera).
+        X0 or Y0 of the wrong shape or not finite, and when no exact fit exists.
 
     Warns
     -----
@@ -183,110 +151,184 @@ def solve_admm(
         When ``max_iter`` is reached before the tolerance is met (status MAX_ITER).
     """
     start = time.perf_counter()
-    tol, max_iter, beta0, alpha = check_admm_options(tol, max_iter, beta, relaxation)
-    feasible = _ExactFitSet(term)
-    Z, U = _initial_iterates(term, feasible.scale, feasible.offset, X0, Y0, beta0)
-    run = _iterate(feasible, Z, U, beta0, alpha, tol, max_iter, adaptive, verbose)
-
-    scale = feasible.scale
-    X = run.X * scale
-    Y = run.beta * run.U
+    options = _check_options(tol, max_iter, beta, relaxation, adaptive)
+    problem = _Splitting(term, tau=None)
+    Z, U = problem.start(X0, Y0, options["beta"])
+    run = problem.iterate(Z, U, options, verbose)
+    X = run.X * problem.scale
     fit = fit_summary(term, X)
-    nuclear = fit["nuclear_norm"]
-    wall = time.perf_counter() - start
-    converged = run.status == CONVERGED
-    if verbose:
-        print(
-            f"ADMM {'optimal' if converged else 'stopped'} after {run.n_iter} iterations: primal "
-            f"{run.r_rel:.2e} dual {run.s_rel:.2e} gap {run.gap * scale:.3g} ||X||_* {nuclear:.6g} "
-            f"({wall:.2f} s)"
-        )
-    if converged:
-        message = (
-            f"optimal: primal and dual residuals and duality gap within tol={tol:g} after {run.n_iter} "
-            f"iterations"
-        )
-    else:
-        message = (
-            f"tolerance {tol:g} not met after max_iter={run.n_iter} iterations (relative primal residual "
-            f"{run.r_rel:.2e}, dual residual {run.s_rel:.2e})"
-        )
-        warnings.warn(f"TNH with ADMM: {message}. Raise max_iter or loosen tol", RuntimeWarning, stacklevel=3)
+    message = _finish(run, "TNH with ADMM", verbose, f"||X||_* {fit['nuclear_norm']:.6g}")
     return TNHResult(
-        x=X,
-        fun=nuclear,
-        status=run.status,
-        message=message,
-        nit=run.n_iter,
-        wall_time=wall,
-        method="admm",
-        solver="ADMM",
-        tau=0.0,
-        exact_fit=True,
-        **fit,
-        options=options_record(tol, max_iter, beta0, alpha, adaptive, run.beta),
-        dual=Y,
-        duality_gap=float(run.gap * scale),
-    )
+        x=X, fun=fit["nuclear_norm"], status=run.status, message=message, nit=run.nit,
+        wall_time=time.perf_counter() - start, method="admm", solver="ADMM", tau=0.0, exact_fit=True, **fit,
+        options={**options, "final_beta": run.beta}, dual=run.beta * run.U,
+        duality_gap=float(run.gap * problem.scale),
+    )  # fmt: skip
 
 
-def options_record(tol, max_iter, beta0, alpha, adaptive, final_beta) -> dict:
-    """The ``options`` of an ADMM TNH result: those it ran with, and ``final_beta``, the adapted penalty."""
-    keys = ("tol", "max_iter", "beta", "relaxation", "adaptive", "final_beta")
-    return dict(zip(keys, (tol, max_iter, beta0, alpha, bool(adaptive), final_beta), strict=True))
+def robust_tnh_objective(term: OrthographicReprojection, X, tau: float) -> float:
+    """tau ||X||_* + sum of absolute reprojection residuals of X (F, 3P) under ``term`` (unit of the
+    tracks): the objective :func:`robust_trace_norm_heuristic` minimises."""
+    X = np.asarray(X, dtype=np.float64)
+    if X.shape != term.shape:
+        raise ValueError(f"X must have shape (F, 3P) = {term.shape}; got {X.shape}")
+    tau = check_positive(tau, "tau")
+    return tau * float(np.linalg.svd(X, compute_uv=False).sum()) + float(np.abs(term.residuals(X)).sum())
 
 
-def track_scale(term: OrthographicReprojection) -> float:
-    """RMS of the observed tracks (1 if they are all zero): the unit of the ADMM solvers' normalised
-    problems, whose objectives are positively homogeneous in the tracks."""
-    scale = float(np.sqrt(np.sum(term.W**2) / (2 * max(int(term.mask.sum()), 1))))
-    return scale if scale > 0 else 1.0
+def robust_trace_norm_heuristic(
+    W2d,
+    R,
+    mask=None,
+    *,
+    tau: float,
+    tol: float = 1e-6,
+    max_iter: int = 20_000,
+    beta: float | None = None,
+    relaxation: float = 1.6,
+    X0=None,
+    adaptive: bool = True,
+    verbose: bool = False,
+) -> RobustTNHResult:
+    """Robust TNH with known cameras: ``min tau ||X||_* + l1 reprojection error`` by ADMM.
+
+    The l1 term leaves a coordinate unexplained at a cost proportional to its error, so a few displaced
+    points are rejected instead of bending every shape towards them; on well-tracked motion it keeps the
+    inliers' residuals exactly zero, needs no threshold, and keeps tau dimensionless (both terms are
+    lengths). It is the Huber loss's delta -> 0 limit, per image coordinate like
+    :class:`nldr.data_terms.Huber`. For small tau the exact fit is a solution; at large tau X = 0.
+
+    Parameters
+    ----------
+    W2d : array, shape (F, 2P)
+        Image tracks as rows (row f = x of the P points, then y), length unit of the data; entries of
+        unobserved points are ignored (they may be NaN).
+    R : array, shape (F, 2, 3)
+        Known orthographic cameras.
+    mask : bool array, shape (F, P), optional
+        True where point j is observed in frame f (both coordinates). Default: all observed.
+    tau : float > 0
+        Weight of ||X||_* against the l1 reprojection error (dimensionless).
+    tol, max_iter, beta, relaxation, adaptive, verbose
+        As in :func:`solve_admm` (here max_iter defaults to 20000).
+    X0 : array, shape (F, 3P), optional
+        Start for Z (unit of the tracks), e.g. the exact-fit TNH; default the least-norm point of C.
+
+    Returns
+    -------
+    RobustTNHResult
+
+    Raises
+    ------
+    ValueError
+        For malformed tracks, cameras or mask, tau <= 0, and the option errors of :func:`solve_admm`.
+
+    Warns
+    -----
+    RuntimeWarning
+        When ``max_iter`` is reached before the tolerance is met (status MAX_ITER).
+    """
+    start = time.perf_counter()
+    term = OrthographicReprojection(W2d, R, mask)  # validates tracks, cameras and mask
+    tau = check_positive(tau, "tau")
+    options = _check_options(tol, max_iter, beta, relaxation, adaptive)
+    problem = _Splitting(term, tau=tau)
+    Z, U = problem.start(X0, None, options["beta"])
+    run = problem.iterate(Z, U, options, verbose)
+    X = problem.shapes(run.Z) * problem.scale
+    fit = fit_summary(term, X)
+    l1 = float(np.abs(term.residuals(X)).sum())
+    fun = tau * fit["nuclear_norm"] + l1
+    mu = tau * problem.best_dual  # (F, 2, P), zero where unobserved
+    lower = float(np.vdot(mu, term.W.reshape(mu.shape)))
+    message = _finish(run, "robust TNH", verbose, f"objective {fun:.6g}, lower bound {lower:.6g}")
+    return RobustTNHResult(
+        x=X, fun=fun, status=run.status, message=message, nit=run.nit, wall_time=time.perf_counter() - start,
+        method="admm_l1", solver="ADMM", tau=tau, exact_fit=False, **fit,
+        options={**options, "final_beta": run.beta}, dual=mu.reshape(term.n_frames, -1),
+        duality_gap=float(fun - lower), l1_error=l1, lower_bound=lower,
+    )  # fmt: skip
 
 
-def check_admm_options(tol, max_iter, beta, relaxation) -> tuple[float, int, float, float]:
-    """(tol, max_iter, initial beta, relaxation alpha) of the ADMM TNH solvers, validated."""
+def _check_options(tol, max_iter, beta, relaxation, adaptive) -> dict:
     tol = check_positive(tol, "tol")
     if tol >= 1.0:
         raise ValueError(f"tol must be in (0, 1); got {tol!r}")
-    max_iter = check_count(max_iter, "max_iter")
-    beta0 = 1.0 if beta is None else check_positive(beta, "beta")
     alpha = check_positive(relaxation, "relaxation")
     if alpha >= 2.0:
         raise ValueError(f"relaxation must be in (0, 2); got {relaxation!r}")
-    return tol, max_iter, beta0, alpha
+    beta = 1.0 if beta is None else check_positive(beta, "beta")
+    return {"tol": tol, "max_iter": check_count(max_iter, "max_iter"), "beta": beta, "relaxation": alpha,
+            "adaptive": bool(adaptive)}  # fmt: skip
 
 
-def _pinv_cameras(R: np.ndarray) -> np.ndarray:
-    """Pseudo-inverses (F, 3, 2) of cameras (F, 2, 3), singular values < _RCOND * largest set to 0."""
-    U, s, Vt = np.linalg.svd(R, full_matrices=False)  # U (F,2,2), s (F,2), Vt (F,2,3)
+def _finish(run, name: str, verbose: bool, summary: str) -> str:
+    """The result message (and the warning or the verbose line) of a finished run."""
+    if run.status == CONVERGED:
+        message = f"optimal: residuals and duality gap within tol={run.tol:g} after {run.nit} iterations"
+    else:
+        message = (
+            f"tolerance {run.tol:g} not met after max_iter={run.nit} iterations (relative primal residual "
+            f"{run.r_rel:.2e}, dual residual {run.s_rel:.2e})"
+        )
+        warnings.warn(f"{name}: {message}. Raise max_iter or loosen tol", RuntimeWarning, stacklevel=3)
+    if verbose:
+        print(f"{name}: {message}; {summary}")
+    return message
+
+
+def _pinv_blocks(B: np.ndarray) -> np.ndarray:
+    """Pseudo-inverses (F, n, 2) of (F, 2, n), singular values < _RCOND * largest set to 0."""
+    U, s, Vt = np.linalg.svd(B, full_matrices=False)  # U (F,2,2), s (F,2), Vt (F,2,n)
     cutoff = _RCOND * s[:, :1]
     inv = np.divide(1.0, s, out=np.zeros_like(s), where=(s > cutoff) & (s > 0))
     return np.einsum("fkc,fc,fdc->fkd", Vt.transpose(0, 2, 1), inv, U)
 
 
-class _ExactFitSet:
-    """The affine set C of shapes (F, 3P) that reproject exactly onto the observed tracks, in normalised
-    units (tracks divided by ``scale``, their RMS over the observed entries), and its projections.
+@dataclass
+class _Run:
+    """State of the ADMM loop when it stopped (normalised units)."""
 
-    Raises a ValueError when C is empty (an observed point outside the range of a singular camera).
-    """
+    X: np.ndarray
+    Z: np.ndarray
+    U: np.ndarray
+    beta: float
+    status: int
+    nit: int
+    gap: float
+    r_rel: float
+    s_rel: float
+    tol: float
 
-    def __init__(self, term: OrthographicReprojection):
+
+class _Splitting:
+    """The splitting of the module docstring in normalised units: the affine set C of x (blocks (F, k, P),
+    k = 3 shape rows, plus 2 residual rows for the robust TNH), its projections, the prox of g and the
+    duality gap. ``tau=None``: the exact fit."""
+
+    def __init__(self, term: OrthographicReprojection, tau: float | None):
         F, P = term.n_frames, term.n_points
-        self.shape3 = (F, 3, P)
-        self.shape = (F, 3 * P)
-        self.observed = term.mask[:, None, :]  # (F, 1, P), broadcasts over the 3 coordinates
-
-        # Normalised units: the problem is positively homogeneous in the tracks, so solve with b / scale.
-        self.scale = scale = track_scale(term)
-        W3 = (term.W / scale).reshape(F, 2, P)
-
-        pinv = _pinv_cameras(term.R)  # (F, 3, 2)
-        self.null_proj = np.eye(3) - np.einsum("fkc,fcl->fkl", pinv, term.R)  # (F, 3, 3), I - R^+ R
-        # least-norm fit, (F, 3, P)
-        self.offset = np.where(self.observed, np.einsum("fkc,fcp->fkp", pinv, W3), 0.0)
-        fit = np.einsum("fck,fkp->fcp", term.R, self.offset) - W3  # residual of the least-norm fit, (F, 2, P)
-        bad = term.mask & (np.abs(fit).max(axis=1) > _FEASIBILITY_RTOL * max(1.0, float(np.abs(W3).max())))
+        self.tau, self.R = tau, term.R
+        k = 3 if tau is None else 5
+        self.shape3, self.shape = (F, k, P), (F, k * P)
+        self.observed = term.mask[:, None, :]  # (F, 1, P), broadcasts over the block's rows
+        self.scale = scale = float(np.sqrt(np.sum(term.W**2) / (2 * max(int(term.mask.sum()), 1)))) or 1.0
+        self.b = (term.W / scale).reshape(F, 2, P)
+        B = term.R if tau is None else np.concatenate([term.R, np.broadcast_to(np.eye(2), (F, 2, 2))], axis=2)
+        pinv = _pinv_blocks(B)  # (F, k, 2)
+        self.null_proj = np.eye(k) - np.einsum("fkc,fcl->fkl", pinv, B)  # (F, k, k), I - B^+ B
+        self.offset = np.where(
+            self.observed, np.einsum("fkc,fcp->fkp", pinv, self.b), 0.0
+        )  # least-norm point
+        # unobserved blocks: the shape rows are free, a residual row is 0
+        self.free = None if tau is None else np.array([1.0, 1.0, 1.0, 0.0, 0.0])[None, :, None]
+        self.best_lower, self.best_dual = -np.inf, np.zeros((F, 2, P))
+        if tau is not None:
+            return
+        fit = np.einsum("fck,fkp->fcp", term.R, self.offset) - self.b  # residual of the least-norm fit
+        bad = term.mask & (
+            np.abs(fit).max(axis=1) > _FEASIBILITY_RTOL * max(1.0, float(np.abs(self.b).max()))
+        )
         if bad.any():
             f, j = np.argwhere(bad)[0]
             raise ValueError(
@@ -295,108 +337,101 @@ class _ExactFitSet:
                 f"are unreachable. Fix the cameras, hide those points in the mask or use a penalised solver"
             )
 
-    def project(self, V: np.ndarray) -> np.ndarray:
-        """P_C(V): observed blocks to the nearest exact reprojection, unobserved blocks unchanged."""
+    def start(self, X0, Y0, beta) -> tuple[np.ndarray, np.ndarray]:
+        """(Z, U): Z from X0 (default the least-norm point of C), U = Y0 / beta (default 0)."""
+        F, k, P = self.shape3
+        if X0 is None:
+            Z = self.offset.reshape(self.shape).copy()
+        else:
+            X0 = check_shapes(X0, F, P, name="X0")
+            Z = np.zeros(self.shape3)
+            Z[:, :3] = X0.reshape(F, 3, P) / self.scale
+            Z = Z.reshape(self.shape)
+        if Y0 is None:
+            return Z, np.zeros_like(Z)
+        U = as_float_matrix(Y0, "Y0")
+        if U.shape != self.shape:
+            raise ValueError(f"Y0 must have shape (F, 3P) = {self.shape}; got {U.shape}")
+        return Z, U / beta
+
+    def project(self, V: np.ndarray, offset: bool = True) -> np.ndarray:
+        """P_C(V) (``offset=False``: the projection onto the null space of the constraints)."""
         V3 = V.reshape(self.shape3)
+        NV = np.einsum("fkl,flp->fkp", self.null_proj, V3)
         return np.where(
-            self.observed, np.einsum("fkl,flp->fkp", self.null_proj, V3) + self.offset, V3
+            self.observed, NV + self.offset if offset else NV, V3 if self.free is None else V3 * self.free
         ).reshape(self.shape)
 
-    def project_null(self, V: np.ndarray) -> np.ndarray:
-        """Projection onto the null space of the constraints (N_f on observed blocks, identity else)."""
+    def shapes(self, V: np.ndarray) -> np.ndarray:
+        """The shape rows (F, 3P) of x- or z-shaped V."""
+        return V.reshape(self.shape3)[:, :3].reshape(self.shape3[0], -1)
+
+    def prox(self, V: np.ndarray, t: float) -> tuple[np.ndarray, float]:
+        """prox_{t g}(V) and ||.||_* of its shapes."""
+        if self.tau is None:
+            return soft_threshold_singular_values_gram(V, t)
         V3 = V.reshape(self.shape3)
-        return np.where(self.observed, np.einsum("fkl,flp->fkp", self.null_proj, V3), V3).reshape(self.shape)
+        S, nuclear = soft_threshold_singular_values_gram(self.shapes(V), t)
+        e = V3[:, 3:]
+        e = np.sign(e) * np.maximum(np.abs(e) - t / self.tau, 0.0)
+        return np.concatenate([S.reshape(self.shape3[0], 3, -1), e], axis=1).reshape(self.shape), nuclear
 
+    def duality_gap(self, X: np.ndarray, Z: np.ndarray, Y: np.ndarray) -> tuple[float, float]:
+        """(upper bound - dual bound, upper bound) for the iterates and a multiplier estimate Y."""
+        Yr = Y - self.project(Y, offset=False)  # component in range(B^T)
+        if self.tau is None:
+            spectral = float(np.linalg.norm(Yr, 2)) if Yr.size else 0.0
+            nuclear = float(np.linalg.svd(X, compute_uv=False).sum())
+            return nuclear - float(np.vdot(X, Yr)) / max(1.0, spectral), nuclear
+        lam = np.where(self.observed, Yr.reshape(self.shape3)[:, 3:], 0.0)  # Yr = (R^T lam, lam)
+        spectral = float(np.linalg.norm(self.shapes(Yr), 2))
+        lam = lam / max(1.0, spectral, self.tau * float(np.abs(lam).max()))
+        lower = float(np.vdot(lam, self.b))
+        if lower > self.best_lower:  # every evaluated bound is valid: keep the best
+            self.best_lower, self.best_dual = lower, lam
+        S = self.shapes(Z).reshape(self.shape3[0], 3, -1)
+        l1 = float(np.abs(np.where(self.observed, self.b - self.R @ S, 0.0)).sum())
+        upper = float(np.linalg.svd(self.shapes(Z), compute_uv=False).sum()) + l1 / self.tau
+        return upper - self.best_lower, upper
 
-def _initial_iterates(term, scale, offset, X0, Y0, beta) -> tuple[np.ndarray, np.ndarray]:
-    """(Z, U) in normalised units: Z from X0 (default the least-norm fit), U = Y0 / beta (default 0)."""
-    if X0 is None:
-        Z = offset.reshape(term.shape).copy()
-    else:
-        Z = as_float_matrix(X0, "X0")
-        if Z.shape != term.shape:
-            raise ValueError(f"X0 must have shape (F, 3P) = {term.shape}; got {Z.shape}")
-        Z = Z / scale
-    if Y0 is None:
-        U = np.zeros_like(Z)
-    else:
-        U = as_float_matrix(Y0, "Y0")
-        if U.shape != term.shape:
-            raise ValueError(f"Y0 must have shape (F, 3P) = {term.shape}; got {U.shape}")
-        U = U / beta
-    return Z, U
-
-
-class _Run:
-    """State of the ADMM loop when it stopped (normalised units)."""
-
-    def __init__(self, X, U, beta, status, n_iter, gap, r_rel, s_rel):
-        self.X, self.U, self.beta, self.status, self.n_iter = X, U, beta, status, n_iter
-        self.gap, self.r_rel, self.s_rel = gap, r_rel, s_rel
-
-
-def _iterate(feasible: _ExactFitSet, Z, U, beta, alpha, tol, max_iter, adaptive, verbose) -> _Run:
-    """The ADMM iterations of the module docstring, with the stopping test every _ADAPT_EVERY
-    iterations and residual balancing of beta."""
-    status, n_iter, gap, changes = MAX_ITER, 0, np.nan, 0
-    r_rel = s_rel = np.inf
-    for it in range(1, max_iter + 1):
-        n_iter = it
-        X = feasible.project(Z - U)
-        H = alpha * X + (1.0 - alpha) * Z
-        V = H + U
-        Z, z_nuclear = soft_threshold_singular_values_gram(V, 1.0 / beta)
-        U = V - Z
-
-        check = it % _ADAPT_EVERY == 0 or it == max_iter
-        if not check:
-            continue
-        Y = beta * U
-        r_rel, s_rel = _relative_residuals(X, Z, Y, feasible)
-        if verbose and it % 100 == 0:
-            print(
-                f"ADMM {it:6d}  primal {r_rel:.2e}  dual {s_rel:.2e}  beta {beta:.3g}  "
-                f"||Z||_* {z_nuclear:.6g}"
-            )
-        if r_rel <= tol and s_rel <= tol:
-            gap, nuclear = _duality_gap(X, Y, feasible)
-            if gap <= tol * nuclear:
-                status = CONVERGED
-                break
-        if adaptive and changes < ADAPT_MAX_CHANGES:
-            factor = balancing_factor(r_rel, s_rel)
-            if factor is None:
+    def iterate(self, Z, U, options, verbose) -> _Run:
+        """The ADMM iterations, the stopping test every _ADAPT_EVERY iterations, residual balancing."""
+        tol, max_iter, beta, alpha = (options[k] for k in ("tol", "max_iter", "beta", "relaxation"))
+        status, nit, gap, changes = MAX_ITER, 0, np.nan, 0
+        r_rel = s_rel = np.inf
+        for it in range(1, max_iter + 1):
+            nit = it
+            X = self.project(Z - U)
+            H = alpha * X + (1.0 - alpha) * Z
+            V = H + U
+            Z, z_nuclear = self.prox(V, 1.0 / beta)
+            U = V - Z
+            if not (it % _ADAPT_EVERY == 0 or it == max_iter):
                 continue
-            beta *= factor
-            U /= factor
-            changes += 1
-
-    if status != CONVERGED:  # the gap at the last iterate (any earlier evaluation is stale)
-        gap, _ = _duality_gap(X, beta * U, feasible)
-    return _Run(X, U, beta, status, n_iter, gap, r_rel, s_rel)
-
-
-def _relative_residuals(X, Z, Y, feasible: _ExactFitSet) -> tuple[float, float]:
-    """Relative primal residual ||X - Z|| / max(||X||, ||Z||) and dual residual ||P_null(Y)|| / ||Y||."""
-    norm_x, norm_z, norm_y = (float(np.linalg.norm(M)) for M in (X, Z, Y))
-    r_rel = float(np.linalg.norm(X - Z)) / max(norm_x, norm_z, 1e-300)
-    s_rel = float(np.linalg.norm(feasible.project_null(Y))) / max(norm_y, 1e-300)
-    return r_rel, s_rel
-
-
-def balancing_factor(r_rel: float, s_rel: float) -> float | None:
-    """Residual balancing: the factor beta is multiplied by, or None to leave it."""
-    if r_rel > _ADAPT_MU * s_rel:
-        return _ADAPT_FACTOR
-    if s_rel > _ADAPT_MU * r_rel:
-        return 1.0 / _ADAPT_FACTOR
-    return None
-
-
-def _duality_gap(X: np.ndarray, Y: np.ndarray, feasible: _ExactFitSet) -> tuple[float, float]:
-    """(||X||_* - dual bound, ||X||_*) for a feasible X and a multiplier estimate Y (normalised units)."""
-    Yr = Y - feasible.project_null(Y)  # component in range(A^T)
-    spectral = float(np.linalg.norm(Yr, 2)) if Yr.size else 0.0
-    lower = float(np.vdot(X, Yr)) / max(1.0, spectral)
-    nuclear = float(np.linalg.svd(X, compute_uv=False).sum())
-    return nuclear - lower, nuclear
+            Y = beta * U
+            norm_x, norm_z, norm_y = (float(np.linalg.norm(M)) for M in (X, Z, Y))
+            r_rel = float(np.linalg.norm(X - Z)) / max(norm_x, norm_z, 1e-300)
+            s_rel = float(np.linalg.norm(self.project(Y, offset=False))) / max(norm_y, 1e-300)
+            if verbose and it % 100 == 0:
+                print(f"ADMM {it:6d}  primal {r_rel:.2e}  dual {s_rel:.2e}  beta {beta:.3g}  {z_nuclear:.6g}")
+            if r_rel <= tol and s_rel <= tol:
+                gap, upper = self.duality_gap(X, Z, Y)
+                if gap <= tol * upper:
+                    status = CONVERGED
+                    break
+            if options["adaptive"] and changes < _ADAPT_MAX_CHANGES:
+                factor = (
+                    _ADAPT_FACTOR
+                    if r_rel > _ADAPT_MU * s_rel
+                    else 1 / _ADAPT_FACTOR
+                    if s_rel > _ADAPT_MU * r_rel
+                    else None
+                )
+                if factor is None:
+                    continue
+                beta *= factor
+                U /= factor
+                changes += 1
+        if status != CONVERGED:  # the gap at the last iterate (any earlier evaluation is stale)
+            gap, _ = self.duality_gap(X, Z, beta * U)
+        return _Run(X, Z, U, beta, status, nit, gap, r_rel, s_rel, tol)

@@ -1,59 +1,44 @@
-"""NRSfM with unknown cameras: the camera LM, the shape/camera alternation and TNH alternating with it.
+"""Table 4's TNH with estimated cameras: the camera LM and the shape/camera alternation.
 
 After the rigid initialisation (:mod:`nldr.nrsfm.factorization`) the paper alternates between the 3D
 shapes and the cameras, "parameterising each R_i with quaternions ... using LM" (Section 4.3):
 
 - :func:`camera_lm`: Levenberg-Marquardt on the per-frame quaternions with the shapes fixed,
   vectorised over frames (given the shapes, the frames are independent 4-parameter problems);
-- :func:`refine_cameras_and_shapes`: alternation of a shape step (any callable R -> X) with the
-  camera LM;
-- :func:`tnh_with_camera_refinement`: Table 4's TNH baseline, the alternation with the proximal-gradient
-  TNH as its shape step, run to convergence.
+- :func:`tnh_with_camera_refinement`: the alternation of a proximal-gradient TNH shape step
+  (:func:`~nldr.nrsfm.tnh.fista_tnh`) with the camera LM, block-coordinate descent on
+  tau ||X||_* + reprojection error, run to convergence.
 
-Two findings shape the TNH alternation (docs/REPRODUCTION.md#table-4-tnh). It must run to
-convergence: it is block-coordinate descent on tau ||X||_* + reprojection error, the number of outer
-iterations it needs grows roughly like 1 / tau, and stopped early it leaves e3D two to four times the
-converged value; hence the warm-started proximal-gradient shape step and a test over a window of outer
-iterations. And every tau starts from the rigid cameras (a continuation in tau lands in a different,
-better basin on yoga than the paper's number).
+It must run to convergence (stopped early it leaves e3D two to four times the converged value), and
+every tau starts from the rigid cameras (docs/REPRODUCTION.md#table-4-tnh). Maintenance note (speed):
+the shape step's FISTA tolerance follows the alternation's progress and its momentum carries over from
+one outer iteration to the next, and the camera LM forms its normal equations from 3x3 summaries
+(:func:`lm_normal_equations`); none of this moves the fixed point of the first implementation,
+:func:`nldr.reference.nrsfm.tnh_with_camera_refinement_reference` (tests/test_unknown_cameras_speed.py).
 
-Maintenance note (speed). Four things make an outer iteration cheap, none of which moves the
-alternation's fixed point: the singular value thresholding goes through the small Gram matrix
-(:mod:`~nldr.nrsfm.svt`); the shape step's FISTA tolerance follows the alternation's progress and its
-momentum carries over from one outer iteration to the next; the camera LM forms its normal equations
-from 3x3 summaries (:func:`lm_normal_equations`) and stops a frame once its cost changes only by
-rounding. The first implementation is :func:`nldr.reference.nrsfm.tnh_with_camera_refinement_reference`
-(tests/test_unknown_cameras_speed.py checks the two agree; benchmarks/bench_table4.py times both).
-
-Layouts as in :mod:`nldr.nrsfm.layout`: image tracks W2d (F, 2P), shapes X (F, 3P), cameras R (F, 2, 3),
-visibility masks (F, P); the tracks are assumed centred (orthographic model w = R s without
-translation).
-
-Gauge. With unknown cameras, (R_f Q, Q^T S_f) reproduces the tracks for any orthogonal Q, det -1
-included. Estimated cameras and shapes are therefore compared with the ground truth after ONE global
-orthogonal alignment per sequence (:func:`~nldr.nrsfm.metrics.e3d` with ``align=True`` and
+Layouts as in :mod:`nldr.nrsfm.layout`; the tracks are assumed centred (w = R s, no translation).
+Gauge: (R_f Q, Q^T S_f) reproduces the tracks for any orthogonal Q, so estimates are compared with the
+ground truth after one global alignment (:func:`~nldr.nrsfm.metrics.e3d` with ``align=True``,
 :func:`~nldr.nrsfm.metrics.camera_error`), as the benchmark's ``compareStructs.m`` does.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from .._validation import check_count, check_positive
 from ..result import SolverResult, status_from
-from .fista import fista_tnh
 from .reprojection import check_cameras, check_shapes, check_tracks, masked_residual, visibility_weights
 from .rotations import camera_to_quaternion, nearest_orthonormal_rows, quaternion_rotation
+from .tnh import fista_tnh
 
 __all__ = [
     "CameraShapeResult",
     "lm_normal_equations",
     "camera_lm",
-    "refine_cameras_and_shapes",
     "tnh_with_camera_refinement",
     "tnh_alternation",
 ]
@@ -170,17 +155,16 @@ def camera_lm(Wf3, mask, q, Sf, max_iter=100, ftol=1e-12, xtol=1e-12):
 
 @dataclass(kw_only=True, repr=False)
 class CameraShapeResult(SolverResult):
-    """Result of :func:`refine_cameras_and_shapes` (a :class:`~nldr.result.SolverResult`).
+    """Result of :func:`tnh_with_camera_refinement` (a :class:`~nldr.result.SolverResult`).
 
     Attributes
     ----------
     x : array, shape (F, 3P)
-        Shapes of the last shape step.
+        Shapes of the last shape step (unit of the tracks).
     fun : float
-        The monitored quantity after the last outer iteration: the joint energy
-        ``energy_history[-1]`` when a ``penalty`` was given, else the reprojection error ``history[-1]``.
+        The joint energy tau ||X||_* + reprojection error after the last outer iteration.
     status, message
-        CONVERGED when the relative decrease of the monitored quantity fell below ``tol``, MAX_ITER
+        CONVERGED when the windowed relative decrease of the joint energy fell below ``tol``, MAX_ITER
         when ``max_outer`` was reached first.
     nit : int
         Outer iterations (shape step + camera step).
@@ -188,130 +172,13 @@ class CameraShapeResult(SolverResult):
         Cameras after the last camera step.
     history : array, shape (nit,)
         Reprojection error (sum of squares over observed points) after each camera step.
-    shape_history : array, shape (nit,)
-        Reprojection error after each shape step (with the previous cameras).
-    energy_history : array, shape (nit,) or None
-        ``penalty(x) + history`` after each outer iteration, when ``penalty`` was given.
-    shape_time, camera_time : float
-        Seconds spent in the shape steps and in the camera LM.
+    energy_history : array, shape (nit,)
+        The joint energy after each outer iteration.
     """
 
     R: np.ndarray
     history: np.ndarray
-    shape_history: np.ndarray
-    energy_history: np.ndarray | None
-    shape_time: float
-    camera_time: float
-
-
-def refine_cameras_and_shapes(
-    W2d,
-    mask,
-    R0,
-    shape_step: Callable[[np.ndarray], np.ndarray],
-    *,
-    max_outer: int = 20,
-    tol: float = 1e-4,
-    window: int = 1,
-    camera_max_iter: int = 100,
-    penalty: Callable[[np.ndarray], float] | None = None,
-    callback: Callable[[int, np.ndarray, np.ndarray], None] | None = None,
-) -> CameraShapeResult:
-    """Alternate a shape step X = shape_step(R) with the camera LM (:func:`camera_lm`).
-
-    Outer iteration k: X_k = shape_step(R_{k-1}), then R_k = LM from R_{k-1} with X_k fixed. If the
-    shape step minimises ``penalty(X) + reprojection(R, X)``, every step decreases that joint energy.
-    Stops when the relative decrease (E_{k-window} - E_k) / E_{k-window} of the monitored quantity
-    (``penalty(X_k) + e_k`` when ``penalty`` is given, else the reprojection error e_k) is below
-    ``tol``, increases included, or after ``max_outer`` iterations. Pass the penalty for a
-    regularised shape step: its reprojection error alone need not decrease (on pickup with TNH,
-    tau = 10, it rose by 5 % in the second iteration while the joint energy fell). An exact-fit shape
-    step reprojects any cameras exactly, so it cannot drive the cameras.
-
-    Parameters
-    ----------
-    W2d : array, shape (F, 2P)
-        Centred image tracks as rows.
-    mask : bool array, shape (F, P) or None
-    R0 : array, shape (F, 2, 3)
-        Initial cameras (projected to orthonormal rows).
-    shape_step : callable
-        ``shape_step(R) -> X`` with R (F, 2, 3) and X (F, 3P); use a closure to warm-start.
-    max_outer : int, default 20
-    tol : float > 0, default 1e-4
-    window : int, default 1
-        Outer iterations the decrease is measured over. Block-coordinate alternations crawl; a window
-        of about 10 keeps a slow but steady descent going where a one-step test would stop it.
-    camera_max_iter : int, default 100
-        LM iterations per camera step.
-    penalty : callable, optional
-        ``penalty(X) -> float``, the regulariser the shape step minimises with the reprojection error.
-    callback : callable, optional
-        ``callback(k, R_k, X_k)`` after every outer iteration (k from 1).
-
-    Returns
-    -------
-    CameraShapeResult
-    """
-    start = time.perf_counter()
-    W, mask = check_tracks(W2d, mask)
-    F, P = mask.shape
-    R = nearest_orthonormal_rows(check_cameras(R0, F, name="R0"))
-    for name, fn in (("shape_step", shape_step), ("penalty", penalty), ("callback", callback)):
-        if fn is not None and not callable(fn):
-            raise ValueError(f"{name} must be a callable (see the docstring); got {type(fn).__name__}")
-    if shape_step is None:
-        raise ValueError("shape_step must be a callable R (F, 2, 3) -> X (F, 3P); got None")
-    max_outer, window = check_count(max_outer, "max_outer"), check_count(window, "window")
-    tol = check_positive(tol, "tol")
-    camera_max_iter = check_count(camera_max_iter, "camera_max_iter")
-    Wf3 = W.reshape(F, 2, P)
-    q = camera_to_quaternion(R)
-    history, shape_history, energy = [], [], []
-    shape_time = camera_time = 0.0
-    converged, message = False, f"reached max_outer={max_outer} outer iterations"
-    X = None
-    for k in range(1, max_outer + 1):
-        t0 = time.perf_counter()
-        X = check_shapes(shape_step(R.copy()), F, P, name="shape_step(R)")
-        t1 = time.perf_counter()
-        Sf = X.reshape(F, 3, P)
-        shape_history.append(float(_frame_costs(Wf3, mask, R, Sf)[0].sum()))
-        q, R, _, frame_cost, _, _, _ = camera_lm(Wf3, mask, q, Sf, camera_max_iter)
-        camera_time += time.perf_counter() - t1
-        shape_time += t1 - t0
-        history.append(float(frame_cost.sum()))
-        monitored = history
-        if penalty is not None:
-            energy.append(float(penalty(X)) + history[-1])
-            monitored = energy
-        if callback is not None:
-            callback(k, R.copy(), X.copy())
-        if k > window:
-            previous = monitored[-1 - window]
-            decrease = (previous - monitored[-1]) / previous if previous > 0 else 0.0
-            if decrease < tol:
-                converged = True
-                what = "joint energy" if penalty is not None else "reprojection error"
-                message = (
-                    f"relative decrease of the {what} over {window} iteration(s) {decrease:.3g} < tol "
-                    f"after {k} iterations"
-                )
-                break
-    return CameraShapeResult(
-        x=X,
-        fun=monitored[-1],
-        status=status_from(converged),
-        message=message,
-        nit=len(history),
-        wall_time=time.perf_counter() - start,
-        R=R,
-        history=np.asarray(history),
-        shape_history=np.asarray(shape_history),
-        energy_history=np.asarray(energy) if penalty is not None else None,
-        shape_time=shape_time,
-        camera_time=camera_time,
-    )
+    energy_history: np.ndarray
 
 
 def tnh_with_camera_refinement(
@@ -319,31 +186,24 @@ def tnh_with_camera_refinement(
 ) -> CameraShapeResult:
     """TNH with the cameras refined in alternation, from R0 to convergence of the joint energy.
 
-    Outer iteration: the shapes minimise tau ||X||_* + reprojection error at the current cameras
-    (:func:`~nldr.nrsfm.fista.fista_tnh`, warm-started from the previous shapes and their FISTA
-    momentum), then the camera LM refines every camera with the shapes fixed
-    (:func:`refine_cameras_and_shapes`, 50 LM iterations per step). Stops when the joint energy fell
-    by less than ``tol`` (relative) over the last ``window`` iterations.
-
-    The shape step is solved only as accurately as the alternation needs: its FISTA tolerance
-    (relative objective decrease per iteration) is 1e-2 times the relative decrease of the joint energy
-    in the previous outer iteration, clipped to [1e-12, 1e-6] (1e-6 for the first two), at most 300
-    FISTA iterations. Its fixed point is that of the reference alternation (fixed tolerance 1e-12, no
-    carried momentum, :mod:`nldr.reference.nrsfm`); the path is not, so a run stops at a slightly
-    different point on its way there and at a slightly different global rotation (up to 1 degree on
-    Table 4's sequences, which e3D and the camera error align away). Both stop equally far from the
-    fixed point: against runs with tol = 1e-13 the two differ by 5e-5 in e3D at most (stretch,
-    tau = 0.1) where the reference is itself 7e-5 from the tighter run
-    (tests/test_unknown_cameras_speed.py).
+    Outer iteration k: the shapes minimise tau ||X||_* + reprojection error at the current cameras
+    (:func:`~nldr.nrsfm.tnh.fista_tnh`, warm-started from the previous shapes and their momentum, at
+    most 300 iterations), then :func:`camera_lm` refines every camera with the shapes fixed (50 LM
+    iterations). The shape step's FISTA tolerance is 1e-2 times the relative decrease of the joint
+    energy in the previous outer iteration, clipped to [1e-12, 1e-6] (1e-6 for the first two). Stops
+    when the relative decrease (E_{k-window} - E_k) / E_{k-window} of the joint energy is below ``tol``,
+    increases included, or after ``max_outer`` iterations; a window of about 10 keeps a slow but steady
+    block-coordinate descent going where a one-step test would stop it.
 
     Parameters
     ----------
     W2d : array, shape (F, 2P)
-        Centred image tracks as rows.
+        Centred image tracks as rows (unobserved entries are ignored).
     mask : bool array, shape (F, P) or None
-        Visibility (None: all observed).
+        Visibility (None: all observed); every frame needs 3 observed points.
     R0 : array, shape (F, 2, 3)
-        Initial cameras, e.g. :func:`~nldr.nrsfm.factorization.initialize_cameras`.
+        Initial cameras (projected to orthonormal rows), e.g.
+        :func:`~nldr.nrsfm.factorization.initialize_cameras`.
     tau : float > 0
         Trace-norm weight, in the unit of the tracks squared.
     max_outer : int, default 20000
@@ -355,8 +215,6 @@ def tnh_with_camera_refinement(
     Returns
     -------
     CameraShapeResult
-        Shapes ``x``, cameras ``R``, histories (``energy_history`` is the joint energy, ``fun`` its
-        last value), ``nit`` outer iterations, ``success``.
     """
     return tnh_alternation(W2d, mask, R0, tau, max_outer, tol, window, X0)
 
@@ -368,39 +226,50 @@ def tnh_alternation(
     ``shape_tol`` = (floor, ratio, ceiling) of its FISTA tolerance (ratio 0: the floor throughout),
     ``momentum`` (carry FISTA's momentum across outer iterations) and ``svt`` (None: FISTA's default
     thresholding). Positional as :func:`tnh_with_camera_refinement`'s; no other caller."""
+    start = time.perf_counter()
     tau = check_positive(tau, "tau")
     floor, ratio, ceiling = shape_tol
     W, vis = check_tracks(W2d, mask)
     F, P = vis.shape
     W3 = W.reshape(F, 2, P)
     m3 = visibility_weights(vis)
-    # The latest shapes (F, 3, P) and their nuclear norm (warm start and penalty), the number of shape
-    # steps so far and the joint energy after the previous camera step (for the shape step's tolerance).
-    state = {"X": np.zeros((F, 3, P)), "nuclear": 0.0, "k": 0, "energy": None, "momentum": None}
+    X, nuclear, carried, previous = np.zeros((F, 3, P)), 0.0, None, None
     if X0 is not None:
         X0 = check_shapes(X0, F, P, name="X0")
-        state["X"] = X0.reshape(F, 3, P).copy()
-        state["nuclear"] = float(np.linalg.svd(X0, compute_uv=False).sum())
+        X, nuclear = X0.reshape(F, 3, P).copy(), float(np.linalg.svd(X0, compute_uv=False).sum())
+    R = nearest_orthonormal_rows(check_cameras(R0, F, name="R0"))
+    max_outer, window = check_count(max_outer, "max_outer"), check_count(window, "window")
+    tol = check_positive(tol, "tol")
     thresholding = {} if svt is None else {"svt": svt}
-
-    def shape_step(R):
-        X = state["X"]
-        state["k"] += 1
+    q = camera_to_quaternion(R)
+    history, energy = [], []
+    converged, message = False, f"reached max_outer={max_outer} outer iterations"
+    for k in range(1, max_outer + 1):
         inner_tol = ceiling if ratio > 0 else floor
-        if ratio > 0 and state["k"] > 1:
-            # the joint energy after outer iteration k - 1 (its shapes, and the cameras R it produced)
+        if ratio > 0 and k > 1:  # the joint energy after outer iteration k - 1 (its shapes and cameras)
             E = masked_residual(W3, m3, R, X)
-            energy = tau * state["nuclear"] + float(np.vdot(E, E))
-            if state["energy"] is not None:
-                decrease = (state["energy"] - energy) / max(energy, 1e-300)
-                inner_tol = min(ceiling, max(floor, ratio * decrease))
-            state["energy"] = energy
-        carried = state["momentum"] if momentum else None
-        out = fista_tnh(W3, m3, R, X, state["nuclear"], tau, 300, inner_tol, momentum=carried, **thresholding)
-        state["X"], state["nuclear"], state["momentum"] = out.x, out.nuclear_norm, out.momentum
-        return out.x.reshape(F, 3 * P)
-
-    return refine_cameras_and_shapes(
-        W2d, mask, R0, shape_step, max_outer=max_outer, tol=tol, window=window, camera_max_iter=50,
-        penalty=lambda X: tau * state["nuclear"],  # X is the latest shape step's
+            now = tau * nuclear + float(np.vdot(E, E))
+            if previous is not None:
+                inner_tol = min(ceiling, max(floor, ratio * (previous - now) / max(now, 1e-300)))
+            previous = now
+        out = fista_tnh(W3, m3, R, X, nuclear, tau, 300, inner_tol, momentum=carried if momentum else None,
+                        **thresholding)  # fmt: skip
+        X, nuclear, carried = out.x, out.nuclear_norm, out.momentum
+        q, R, _, frame_cost, _, _, _ = camera_lm(W3, vis, q, X, 50)
+        history.append(float(frame_cost.sum()))
+        energy.append(tau * nuclear + history[-1])
+        if k > window:
+            before = energy[-1 - window]
+            decrease = (before - energy[-1]) / before if before > 0 else 0.0
+            if decrease < tol:
+                converged = True
+                message = (
+                    f"relative decrease of the joint energy over {window} iteration(s) {decrease:.3g} < tol "
+                    f"after {k} iterations"
+                )
+                break
+    return CameraShapeResult(
+        x=X.reshape(F, 3 * P), fun=energy[-1], status=status_from(converged), message=message,
+        nit=len(history), wall_time=time.perf_counter() - start, R=R, history=np.asarray(history),
+        energy_history=np.asarray(energy),
     )  # fmt: skip

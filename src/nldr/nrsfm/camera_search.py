@@ -1,25 +1,17 @@
 """A data-only camera search for TNH with unknown cameras: re-seating cameras that break the motion.
 
 The camera/shape alternation (:func:`~nldr.nrsfm.camera_refinement.tnh_with_camera_refinement`) is
-block-coordinate descent on the TNH energy tau ||X||_* + reprojection error, and it can stop in a
-poor basin: on Table 4's yoga and stretch sequences with 50 % missing data most frames end within
-about 10 degrees of the true cameras while a few end 90-180 degrees away (a camera turned over, whose
-shape has bent to fit it). The alternation cannot repair such a frame (its camera LM is local, and
-its shape step fits the frame's tracks at whatever camera it has). Started from the true cameras, the
-same alternation reaches a lower energy (docs/REPRODUCTION.md#table-4-tnh): search failures, not the
-energy's preference.
+block-coordinate descent on tau ||X||_* + reprojection error and can stop in a poor basin where a few
+frames end with a camera turned over (90-180 degrees away, their shapes bent to fit), which its local
+camera LM cannot repair (docs/REPRODUCTION.md#table-4-tnh).
 
-:func:`propose_cameras` re-seats the frames whose camera breaks the motion of its neighbours: the
-camera predicted at constant angular velocity from the two previous frames (forward), the two next
-frames (backward), or the geodesic midpoint of the two neighbours (local). A frame whose camera is more
-than ``threshold_deg`` from the prediction takes the prediction. In the forward and backward sweeps
-the predictions use the frames already re-seated, so a run of bad frames is repaired from its good
-side. :func:`tnh_camera_search` continues the alternation from each proposal and keeps the one of
-lowest converged energy if it is lower than the start's; it repeats from there while that holds.
-Every decision uses the TNH energy at the given tau and the tracks alone (no ground truth): the search
-is a better optimiser of the same problem, not a different estimator. The proposals assume the
-cameras move smoothly between frames (as a camera orbiting a performer does); where they do not, a
-proposal costs an alternation and is rejected by the energy.
+:func:`propose_cameras` re-seats the frames whose camera is more than ``threshold_deg`` from the
+prediction of its neighbours: at constant angular velocity from the two previous frames (forward, using
+the frames already re-seated), the two next frames (backward), or the geodesic midpoint of the two
+neighbours (local). :func:`tnh_camera_search` continues the alternation from each proposal and keeps
+the one of lowest converged energy if it is lower than the start's, repeating from there while that
+holds. Every decision uses the TNH energy at the given tau and the tracks alone (no ground truth): a
+better optimiser of the same problem, not a different estimator.
 """
 
 from __future__ import annotations

@@ -1,21 +1,12 @@
 """TNH as a conic program through cvxpy: the reference backend of
-:func:`~nldr.nrsfm.tnh.trace_norm_heuristic` (``method="cvxpy"``), and :class:`CvxpyTNH` for tau sweeps.
+:func:`~nldr.nrsfm.trace_norm_heuristic` (``method="cvxpy"``), and :class:`CvxpyTNH` for tau sweeps.
 
-cvxpy is an optional dependency of nldr (``pip install nldr[cvxpy]``); importing this module without it
-raises an ImportError that says so.
-
-cvxpy turns ||X||_* into a semidefinite cone of order F + 3P (159 for pickup sampled every 10th frame,
-234 for drink). The interior-point solver CLARABEL is accurate but its KKT systems grow quickly with the
-cone order, so it is practical only for small problems, where it is the reference the tests compare
-the first-order backends against. The first-order solver SCS, with the default tolerances below,
-handles the subsampled sequences (drink's full-data exact fit slowest: its near-degenerate low-rank
-optimum slows the tail of convergence) and matches CLARABEL on small problems (tests/test_nrsfm.py).
-SCS is therefore the default conic solver. Neither takes full-length sequences (drink: 1102 frames);
-the ADMM backend does. Timings and e3D per sequence: benchmarks/bench_tnh.py.
-
-Constructing :class:`CvxpyTNH` only builds cvxpy's expression trees; cvxpy compiles a problem on its
-first solve. tau is a ``cvxpy.Parameter``, so sweeping tau on one :class:`CvxpyTNH` re-solves without
-recompiling.
+cvxpy is an optional dependency (``pip install nldr[cvxpy]``); importing this module without it raises
+an ImportError that says so. cvxpy turns ||X||_* into a semidefinite cone of order F + 3P: the
+interior-point CLARABEL is accurate and practical for small problems (the tests' reference), the
+first-order SCS (the default) handles the subsampled sequences; neither takes full-length sequences,
+which the ADMM backend does (benchmarks/bench_tnh.py). tau is a ``cvxpy.Parameter``, compiled on the
+first solve, so a tau sweep on one :class:`CvxpyTNH` re-solves without recompiling.
 """
 
 from __future__ import annotations
@@ -36,15 +27,12 @@ except ImportError as exc:  # pragma: no cover - exercised by tests with cvxpy h
 from .._validation import check_positive
 from ..result import CONVERGED, INACCURATE
 from .reprojection import OrthographicReprojection
-from .tnh_result import TNHResult, TNHSolveError, fit_summary
+from .tnh import TNHResult, TNHSolveError, fit_summary
 
 __all__ = ["DEFAULT_SOLVER_OPTIONS", "CvxpyTNH"]
 
-#: Default options per conic solver. SCS: eps_abs = eps_rel = 1e-6 (cvxpy's default is 1e-5). On the
-#: paper's four sequences (every 10th frame, exact fit) e3D at 1e-5, 1e-6 and 1e-7 agrees to 1e-5 or
-#: better except drink at 1e-5 (0.0220 against 0.0221); each tightening costs iterations
-#: (benchmarks/bench_tnh.py). max_iters is raised from SCS's 1e5 so that the tolerance, not the cap,
-#: stops the solver.
+#: Default options per conic solver. SCS: eps_abs = eps_rel = 1e-6 (cvxpy's default 1e-5; the choice is
+#: measured by benchmarks/bench_tnh.py), max_iters raised so that the tolerance, not the cap, stops it.
 DEFAULT_SOLVER_OPTIONS: dict[str, dict] = {
     "SCS": {"eps_abs": 1e-6, "eps_rel": 1e-6, "max_iters": 200_000},
     "CLARABEL": {},

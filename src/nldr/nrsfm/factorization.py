@@ -104,13 +104,8 @@ def _varpro_residuals_jacobian(s, Wf3, mask, P, want_jacobian):
     return r, (np.vstack(blocks) if want_jacobian else None)
 
 
-# Nonlinear least squares of the camera initialisation (variable projection, metric polish). Not
-# "lm": scipy's MINPACK (1.17, C translation) returned different bits for identical inputs on
-# repeated calls in one process (three distinct answers in 100 calls of the metric polish on
-# pickup, also through scipy.optimize.leastsq), which made Table 4 differ between two clean runs
-# now and then. "trf" is numpy code (dense SVD per step), reaches the same optimum (rms equal to
-# 1e-13 on the four Table 4 sequences with half the points missing) in as many evaluations, and
-# repeats bit for bit (tests/test_cameras.py).
+# Nonlinear least squares of the camera initialisation (variable projection, metric polish): "trf",
+# which repeats bit for bit, not MINPACK's "lm", which did not (docs/PERFORMANCE.md, determinism).
 _LSQ_METHOD = "trf"
 
 

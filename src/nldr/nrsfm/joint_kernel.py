@@ -7,37 +7,31 @@ The paper's energy with unknown cameras is, for every penalty weight rho of Algo
 
 with K the RBF kernel over the frames' shapes s_f (rows of S, F x 3P); with a Huber loss the squared
 reprojection error becomes sum h_delta over the image coordinates (:func:`nldr.data_terms.huber_loss`).
-Alternating the camera LM with a kernel shape step leaves the cameras where they start: at the
-paper's tau = 1e-4 the shape step fits the tracks to 1e-9, so the reprojection error the LM sees is
-already zero at any cameras (measured: about 1e-4 degree per camera step on Table 4's sequences).
-The regularizer's pull on the cameras only shows when the cameras and the depths move together,
-which a block-coordinate scheme cannot do.
+Alternating the camera LM with a kernel shape step leaves the cameras where they start (at tau = 1e-4
+the shape step fits the tracks, so the LM sees no error to reduce; docs/REPRODUCTION.md#table-4-tnh):
+the regularizer's pull on the cameras only shows when cameras and depths move together.
 
-Change of variables. Complete every camera to a rotation Q_f = [R_f; r_f1 x r_f2] (3 x 3) and write the
-shape in the camera's frame, Z_f = Q_f s_f (3 x P): its first two rows are the predicted image points,
-its third the depths. Then R_f s_f = Z_f[:2] and (1) becomes
+Change of variables. Complete every camera to a rotation Q_f = [R_f; r_f1 x r_f2] and write the shape
+in the camera's frame, Z_f = Q_f s_f (3 x P): its first two rows are the predicted image points, its
+third the depths. Then (1) becomes
 
     E_rho(Q, Z) = sum_f ||mask_f o (W_f - Z_f[:2])||^2 + reg_rho(S),  S_f = Q_f^T Z_f,           (2)
 
-the same energy in new coordinates (a bijection), in which a camera can turn while the image fit
-stays as it is (the depths follow). :func:`joint_value_grad` evaluates (2) and its gradient with Q_f =
-A(q_f) Q0_f, A(q) the rotation of the quaternion q / |q| (a local parametrisation around Q0, q = (1, 0,
-0, 0) at the start); :func:`solve_joint_kernel` minimises it by L-BFGS over (Z, q), one stage per
-rho of the regularizer's penalty method (:func:`~nldr.regularizer.penalty_method`), re-centring the
-rotations after every stage. Gradient of the regularizer in S: the envelope theorem
-(:mod:`nldr._reduced`); with G_f = d reg / d s_f (3 x P): dE/dZ_f = Q_f G_f and dE/dQ_f = Z_f G_f^T.
+in which a camera can turn while the image fit stays (the depths follow). :func:`joint_value_grad`
+evaluates (2) and its gradient with Q_f = A(q_f) Q0_f (A(q) the rotation of q / |q|, q = (1, 0, 0, 0) at
+the start); :func:`solve_joint_kernel` minimises it by L-BFGS over (Z, q), one stage per rho of the
+regularizer's penalty method (:func:`~nldr.regularizer.penalty_method`), re-centring the rotations
+after every stage. Gradient in S by the envelope theorem (:mod:`nldr._reduced`); with G_f = d reg /
+d s_f: dE/dZ_f = Q_f G_f and dE/dQ_f = Z_f G_f^T.
 
-Scaling. In (2) the observed image coordinates carry the data term's curvature 2, while the
-depths, the unobserved image coordinates and the quaternions see only the regularizer's, 1e-6 to 1e-3
-for Table 4's sequences (it grows with rho): a condition number of 1e3 to 1e6 between the blocks, on
-which plain L-BFGS needed 4.5k-15k iterations per width and often hit its limit in the first stage.
-Every stage therefore runs L-BFGS on u = v / D (a change of variables, the same
-minimisers) with D = 1 on the observed image coordinates and sqrt((2 + c_z) / c_z), sqrt((2 + c_z) / c_q)
-on the other coordinates and on the quaternions, c_z and c_q the curvatures of the stage's energy along
-its gradient restricted to each block (:func:`block_curvature`, a difference of two gradients).
+Scaling. The observed image coordinates carry the data term's curvature 2, the depths, unobserved
+coordinates and quaternions only the regularizer's (orders of magnitude smaller). Every stage runs
+L-BFGS on u = v / D (the same minimisers) with D = 1 on the observed image coordinates and
+sqrt((2 + c_z) / c_z), sqrt((2 + c_z) / c_q) on the other coordinates and on the quaternions, c_z and c_q
+the curvatures of the stage's energy along its gradient restricted to each block
+(:func:`block_curvature`; docs/PERFORMANCE.md).
 
-Multiple starts. Energy (1) has several local minima (per-frame depth reversals of orthographic
-cameras among them) and which one the penalty method reaches depends on its path;
+Multiple starts. Energy (1) has several local minima (per-frame depth reversals among them);
 :func:`joint_kernel_multistart` keeps the lowest energy at the last rho (no ground truth) among a few
 schedules and starts.
 """
@@ -52,6 +46,7 @@ import numpy as np
 from .._reduced import RankHint, kernel_factor, lbfgs_minimize, reduced_value_grad
 from .._threads import blas_threads_for
 from .._validation import check_count, check_positive
+from ..data_terms import huber_loss
 from ..regularizer import RegularizerResult, isolation_safe_rho0, penalty_method, penalty_schedule
 from .reprojection import check_cameras, check_shapes, check_tracks
 from .rotations import complete_rotations, quaternion_rotation
@@ -77,6 +72,11 @@ class _NoData:
 
     def gradient(self, S):
         return np.zeros(self.shape)
+
+
+def _loss(E, delta) -> float:
+    """The reprojection loss of masked residuals E: squared (delta None) or Huber."""
+    return float(np.vdot(E, E)) if delta is None else float(huber_loss(E, delta).sum())
 
 
 def joint_value_grad(Z, q, Q0, W3, m3, gamma, tau, rho, center=False, hint=None, delta=None, spectrum=False):
@@ -119,13 +119,8 @@ def joint_value_grad(Z, q, Q0, W3, m3, gamma, tau, rho, center=False, hint=None,
     G = G.reshape(F, 3, P)
     E = m3 * (W3 - Z[:, :2])
     grad_Z = Q @ G
-    if delta is None:
-        value = float(np.vdot(E, E)) + float(reg)
-        grad_Z[:, :2] -= 2 * E
-    else:
-        a = np.abs(E)
-        value = float(np.where(a <= delta, a * a, 2 * delta * a - delta * delta).sum()) + float(reg)
-        grad_Z[:, :2] -= 2 * np.clip(E, -delta, delta)
+    value = _loss(E, delta) + float(reg)
+    grad_Z[:, :2] -= 2 * (E if delta is None else np.clip(E, -delta, delta))
     grad_Q = Z @ G.transpose(0, 2, 1)  # dE/dQ_f = Z_f G_f^T
     grad_A = grad_Q @ Q0.transpose(0, 2, 1)
     grad_q = np.einsum("fij,fijk->fk", grad_A, dA)
@@ -330,12 +325,7 @@ def solve_joint_kernel(
     with blas_threads_for(F):  # one BLAS thread on small problems (nldr._threads)
         res = penalty_method(np.concatenate([Z0.ravel(), Q.ravel()]), rhos, stage, stage_end, start=start)
     Z, Q = unpack(res.x)
-    E = m3 * (W3 - Z[:, :2])
-    if delta is None:
-        reprojection = float(np.vdot(E, E))
-    else:
-        a = np.abs(E)
-        reprojection = float(np.where(a <= delta, a * a, 2 * delta * a - delta * delta).sum())
+    reprojection = _loss(m3 * (W3 - Z[:, :2]), delta)
     base = {f.name: getattr(res, f.name) for f in fields(res)}
     base.update(x=(Q.transpose(0, 2, 1) @ Z).reshape(F, 3 * P), wall_time=time.perf_counter() - start)
     return JointKernelResult(**base, R=Q[:, :2].copy(), reprojection=reprojection)

@@ -14,7 +14,8 @@ R^{3P}:
 - cameras ``R`` (F, 2, 3).
 
 A visibility mask is a bool array (F, P), True where point j is observed (both image coordinates)
-in frame f.
+in frame f: :func:`random_visibility_mask` draws the paper's missing-data masks,
+:func:`visibility_folds` the hold-out folds of :mod:`nldr.nrsfm.selection`.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ __all__ = [
     "cameras_from_stack",
     "cameras_to_stack",
     "random_visibility_mask",
+    "visibility_folds",
 ]
 
 
@@ -125,6 +127,80 @@ def random_visibility_mask(
     mask = np.ones(F * P, dtype=bool)
     mask[rng.choice(F * P, size=n_missing, replace=False)] = False
     return mask.reshape(F, P)
+
+
+def visibility_folds(
+    mask,
+    n_folds: int = 3,
+    random_state=0,
+    *,
+    holdout_fraction: float | None = None,
+    min_per_frame: int = 3,
+    min_per_point: int = 1,
+) -> list[np.ndarray]:
+    """Hidden 2D points of the cross-validation folds: disjoint subsets of the observed points.
+
+    The observed (frame, point) pairs are shuffled with ``random_state``; fold k hides the k-th chunk
+    of ``round(holdout_fraction * n_observed)`` of them (default: the k-th of ``n_folds`` equal shares,
+    a partition), then un-hides points, in shuffled order, until every frame keeps ``min_per_frame``
+    training points (an orthographic camera has 5 degrees of freedom) and every point ``min_per_point``
+    frames. A frame or point with fewer observations than that in ``mask`` itself is never hidden.
+
+    Parameters
+    ----------
+    mask : bool array, shape (F, P)
+        True where point j is observed in frame f.
+    n_folds : int >= 2, default 3
+    random_state : int or numpy Generator, default 0
+        Seed of the shuffle: the same seed gives the same folds.
+    holdout_fraction : float in (0, 1 / n_folds], optional
+        Share of the observed points each fold hides (before the un-hiding above); default 1 / n_folds.
+    min_per_frame, min_per_point : int >= 0, defaults 3 and 1
+        Training observations every frame and every point keeps.
+
+    Returns
+    -------
+    folds : list of n_folds bool arrays, shape (F, P)
+        True at the points fold k hides: observed, disjoint across folds.
+    """
+    mask = np.asarray(mask)
+    if mask.ndim != 2 or mask.dtype != bool:
+        raise ValueError(f"mask must be a 2-d bool array (F, P); got dtype {mask.dtype}, shape {mask.shape}")
+    n_folds = check_count(n_folds, "n_folds")
+    if n_folds < 2:
+        raise ValueError(f"n_folds must be >= 2; got {n_folds}")
+    if holdout_fraction is None:
+        frac = 1.0 / n_folds
+    else:
+        frac = check_positive(holdout_fraction, "holdout_fraction")
+        if frac * n_folds > 1.0 + 1e-12:
+            raise ValueError(
+                f"holdout_fraction * n_folds must be <= 1 (the folds are disjoint); got {frac} * {n_folds}"
+            )
+    min_per_frame = check_count(min_per_frame, "min_per_frame") if min_per_frame else 0
+    min_per_point = check_count(min_per_point, "min_per_point") if min_per_point else 0
+    observed = np.flatnonzero(mask.ravel())
+    if observed.size < n_folds:
+        raise ValueError(f"mask has {observed.size} observed points, fewer than n_folds = {n_folds}")
+    order = np.random.default_rng(random_state).permutation(observed)
+    size = observed.size // n_folds if holdout_fraction is None else int(round(frac * observed.size))
+    F, P = mask.shape
+    folds = []
+    for k in range(n_folds):
+        chunk = order[k::n_folds] if holdout_fraction is None else order[k * size : (k + 1) * size]
+        hidden = np.zeros(mask.size, dtype=bool)
+        hidden[chunk] = True
+        hidden = hidden.reshape(F, P)
+        for axis, minimum in ((1, min_per_frame), (0, min_per_point)):
+            train = (mask & ~hidden).sum(axis=axis)
+            for idx in np.flatnonzero(train < minimum):
+                # un-hide this frame's (point's) hidden points in shuffled order until it has enough
+                line = chunk[(chunk // P == idx) if axis == 1 else (chunk % P == idx)]
+                need = minimum - train[idx]
+                for flat in line[:need]:
+                    hidden[flat // P, flat % P] = False
+        folds.append(hidden)
+    return folds
 
 
 def _check_dim(dim) -> int:

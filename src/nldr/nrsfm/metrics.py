@@ -131,8 +131,13 @@ def procrustes_rotation(X_est, X_gt, P: int, *, allow_reflection: bool = True) -
     B = _as_shapes(X_est, "X_est", P).reshape(-1, 3, P)
     if A.shape != B.shape:
         raise ValueError(f"X_est and X_gt must have the same shape; got {B.shape} and {A.shape}")
-    # max tr(Q^T M), M = sum_f A_f B_f^T  ->  Q = U V^T from M = U D V^T (orthogonal Procrustes).
-    U, _, Vt = np.linalg.svd(np.einsum("fkp,flp->kl", A, B))
+    return _nearest_orthogonal(np.einsum("fkp,flp->kl", A, B), allow_reflection)  # M = sum_f A_f B_f^T
+
+
+def _nearest_orthogonal(M, allow_reflection: bool) -> np.ndarray:
+    """The orthogonal Q maximising tr(Q^T M) (3, 3): U V^T from M = U D V^T (orthogonal Procrustes),
+    the last column of U flipped if a reflection is not allowed and det(U V^T) < 0."""
+    U, _, Vt = np.linalg.svd(M)
     if not allow_reflection and np.linalg.det(U @ Vt) < 0:
         U[:, -1] = -U[:, -1]
     return U @ Vt
@@ -204,11 +209,8 @@ def global_camera_alignment(R_est, R_gt, *, allow_reflection: bool = True) -> np
     """
     R_est = check_cameras(R_est, name="R_est")
     R_gt = check_cameras(R_gt, R_est.shape[0], name="R_gt")
-    # ||A - B Q^T||^2 = const - 2 tr(Q^T A^T B): maximised by Q = U V^T from sum_f A_f^T B_f = U D V^T.
-    U, _, Vt = np.linalg.svd(np.einsum("fck,fcl->kl", R_gt, R_est))
-    if not allow_reflection and np.linalg.det(U @ Vt) < 0:
-        U[:, -1] = -U[:, -1]
-    return U @ Vt
+    # ||A - B Q^T||^2 = const - 2 tr(Q^T A^T B), M = sum_f A_f^T B_f
+    return _nearest_orthogonal(np.einsum("fck,fcl->kl", R_gt, R_est), allow_reflection)
 
 
 def camera_error(R_est, R_gt, *, Q=None, degrees: bool = True) -> float:

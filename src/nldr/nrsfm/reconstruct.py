@@ -6,11 +6,11 @@ shapes. ``prior`` is the trace-norm heuristic (``"tnh"``, the paper's linear bas
 regularizer (``"kernel"``, the paper's method), which starts from a TNH reconstruction. ``loss`` is
 the squared reprojection error or a robust one: for the kernel method the Huber loss with threshold
 ``delta``; for TNH (known cameras) the l1 loss, the Huber loss's delta -> 0 limit, which needs no
-threshold (:mod:`nldr.nrsfm.robust_tnh`). The Huber kernel method therefore starts by default from
+threshold (:mod:`nldr.nrsfm.admm`). The Huber kernel method therefore starts by default from
 the robust TNH (its ``tau`` in ``tnh``). What runs:
 
 - TNH, known cameras: :func:`~nldr.nrsfm.trace_norm_heuristic` (exact fit by ADMM unless ``tau``),
-  or with ``loss="huber"`` :func:`~nldr.nrsfm.robust_tnh.robust_trace_norm_heuristic`;
+  or with ``loss="huber"`` :func:`~nldr.nrsfm.admm.robust_trace_norm_heuristic`;
 - TNH, estimated cameras: TNH alternating with the camera LM from the rigid cameras
   (:func:`~nldr.nrsfm.camera_refinement.tnh_with_camera_refinement`), optionally followed by the
   camera search (:func:`~nldr.nrsfm.camera_search.tnh_camera_search`);
@@ -24,6 +24,7 @@ shapes, or a gamma.
 
 from __future__ import annotations
 
+import inspect
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -35,16 +36,24 @@ from ..data_terms import Huber
 from ..kernels import d_max_width, d_med_width
 from ..regularizer import minimize_regularized
 from ..result import SolverResult
+from .admm import robust_trace_norm_heuristic, solve_admm
 from .camera_refinement import tnh_with_camera_refinement
 from .camera_search import tnh_camera_search
 from .factorization import initialize_cameras
 from .joint_kernel import joint_kernel_multistart
 from .reprojection import OrthographicReprojection, check_cameras, check_tracks, reprojection_error
-from .robust_tnh import robust_trace_norm_heuristic
-from .tnh import trace_norm_heuristic
-from .variables import CameraFrameVariables
+from .rotations import CameraFrameVariables
+from .tnh import TNHResult, solve_fista
 
-__all__ = ["WIDTH_RULES", "PRIORS", "LOSSES", "Reconstruction", "reconstruct"]
+__all__ = [
+    "WIDTH_RULES",
+    "PRIORS",
+    "LOSSES",
+    "METHODS",
+    "Reconstruction",
+    "reconstruct",
+    "trace_norm_heuristic",
+]
 
 #: The paper's kernel-width rules: name -> gamma of the RBF kernel from shapes as rows.
 WIDTH_RULES = {"d_max": d_max_width, "d_med": d_med_width}
@@ -52,6 +61,88 @@ PRIORS = ("tnh", "kernel")
 LOSSES = ("squared", "huber")
 #: The kernel method's trace-norm weight (the paper's, all NRSfM tables).
 KERNEL_TAU = 1e-4
+#: The solvers of :func:`trace_norm_heuristic` (``method`` is case-insensitive).
+METHODS = ("admm", "fista", "cvxpy")
+_CVXPY_OPTIONS = ("solver", "solver_options", "warm_start", "verbose")
+
+
+def trace_norm_heuristic(
+    W2d, R, mask=None, *, tau: float | None = None, method: str = "admm", **options
+) -> TNHResult:
+    """Solve TNH with known cameras (:mod:`nldr.nrsfm.tnh`), exact-fit (``tau`` None or 0) or penalised.
+
+    The paper runs TNH with tau = 1e-7 in the data's units; at that strength the penalised problem is
+    the exact-fit problem in practice, and the exact fit is the numerically sound way to solve it
+    (docs/REPRODUCTION.md#table-3-tnh).
+
+    Parameters
+    ----------
+    W2d : array, shape (F, 2P)
+        Image tracks as rows (row f = x of the P points, then y), length unit of the data. Entries of
+        unobserved points are ignored (they may be NaN).
+    R : array, shape (F, 2, 3)
+        Known orthographic cameras.
+    mask : bool array, shape (F, P), optional
+        True where point j is observed in frame f (both coordinates). Default: all observed.
+    tau : float >= 0 or None, default None
+        Weight of ||X||_* against the sum of squared reprojection errors (the data's squared unit per
+        unit of nuclear norm). None or 0 solves the exact-fit form.
+    method : {"admm", "fista", "cvxpy"}, default "admm"
+        Case-insensitive. ``"admm"``: the exact fit only (:func:`~nldr.nrsfm.admm.solve_admm`, cost per
+        iteration linear in F, a certified duality gap); ``"fista"``: the penalised form only
+        (:func:`~nldr.nrsfm.tnh.solve_fista`); ``"cvxpy"``: either, as a semidefinite program
+        (:class:`~nldr.nrsfm.cvxpy_tnh.CvxpyTNH`, an optional dependency), the reference for small
+        problems; for a tau sweep use :class:`~nldr.nrsfm.cvxpy_tnh.CvxpyTNH`, which compiles once.
+    **options
+        Options of the method's solver: ``"admm"``: ``tol`` (default 1e-6), ``max_iter``, ``beta``,
+        ``X0``, ``Y0``, ``relaxation``, ``adaptive``, ``verbose`` (warm start from a result ``res``:
+        ``X0=res.x, Y0=res.dual, beta=res.options["final_beta"]``); ``"fista"``: ``X0``, ``max_iter``,
+        ``tol``; ``"cvxpy"``: ``solver`` (default ``"SCS"``), ``solver_options``, ``warm_start``,
+        ``verbose``.
+
+    Returns
+    -------
+    TNHResult
+        ``x`` the shapes (F, 3P) in the unit of the tracks, ``fun`` the objective, the fit
+        (``nuclear_norm``, ``reprojection_error``, ``max_abs_residual``); ADMM adds ``dual`` and
+        ``duality_gap``.
+
+    Raises
+    ------
+    ValueError
+        For malformed inputs, an unknown method or option, a negative tau, ``method="admm"`` with
+        tau > 0, ``method="fista"`` without tau > 0, or an infeasible exact fit (ADMM).
+    ImportError
+        ``method="cvxpy"`` without cvxpy installed (``pip install nldr[cvxpy]``).
+    TNHSolveError
+        ``method="cvxpy"``: the conic solver failed or did not reach an optimal status.
+    """
+    name = method.lower() if isinstance(method, str) else method
+    if name not in METHODS:
+        raise ValueError(f"method must be one of {METHODS} (case-insensitive); got {method!r}")
+    tau_value = 0.0 if tau is None else check_positive(tau, "tau", allow_zero=True)
+    if name == "admm" and tau_value != 0.0:
+        raise ValueError(
+            f"method 'admm' solves the exact-fit form only (tau None or 0); got tau={tau_value:g}. "
+            f"Use method='fista' (or 'cvxpy') for tau > 0"
+        )
+    if name == "fista" and tau_value == 0.0:
+        raise ValueError(
+            "method 'fista' solves the penalised form, tau > 0; use method='admm' for the exact fit"
+        )
+    backend = {"admm": solve_admm, "fista": solve_fista}.get(name)
+    allowed = _CVXPY_OPTIONS if backend is None else tuple(
+        n for n, p in inspect.signature(backend).parameters.items() if p.kind is p.KEYWORD_ONLY and n != "tau"
+    )  # fmt: skip
+    unknown = sorted(set(options) - set(allowed))
+    if unknown:
+        raise ValueError(f"unknown options for method {name!r}: {unknown}; allowed: {sorted(allowed)}")
+    if name == "cvxpy":
+        from .cvxpy_tnh import CvxpyTNH  # cvxpy is optional: imported only here
+
+        return CvxpyTNH(W2d, R, mask).solve(tau, **options)
+    term = OrthographicReprojection(W2d, R, mask)  # validates the tracks, cameras and mask
+    return solve_admm(term, **options) if name == "admm" else solve_fista(term, tau=tau_value, **options)
 
 
 @dataclass(kw_only=True, repr=False)

@@ -91,17 +91,12 @@ class OrthographicReprojection:
     """
 
     def __init__(self, W2d, R, mask=None):
-        W2d = as_float_matrix(W2d, "W2d", allow_nan=True)
-        if W2d.shape[1] % 2:
-            raise ValueError(f"W2d must have shape (F, 2P) (image tracks as rows); got {W2d.shape}")
-        F, P = W2d.shape[0], W2d.shape[1] // 2
-        mask = check_visibility_mask(mask, (F, P))
+        W, mask = check_tracks(W2d, mask, min_points=0)
+        F, P = mask.shape
         mask2 = np.concatenate([mask, mask], axis=1)  # (F, 2P), same layout as W2d
-        if not np.all(np.isfinite(W2d[mask2])):
-            raise ValueError("W2d has NaN or infinite values at observed entries (where mask is True)")
         if not mask.any():
             raise ValueError("mask has no visible point: there is nothing to reconstruct from")
-        check_magnitude(W2d[mask2], "W2d")
+        check_magnitude(W[mask2], "W2d")
         empty = np.flatnonzero(~mask.any(axis=1))
         if empty.size:
             warnings.warn(
@@ -112,7 +107,7 @@ class OrthographicReprojection:
             )
         self.n_frames, self.n_points = F, P
         self.shape = (F, 3 * P)
-        self.W = np.where(mask2, W2d, 0.0)
+        self.W = W
         self.mask = mask
         self._mask2 = mask2
         self._observed = np.flatnonzero(mask2.ravel())

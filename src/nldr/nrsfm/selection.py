@@ -1,30 +1,25 @@
 """Choosing NRSfM parameters from the image tracks alone: hold-out cross-validation of 2D points.
 
-The paper fixes the kernel method's tau (1e-4) and width (the d_max / d_med rules) by hand, and
-tunes the Table 4 TNH baseline's tau on the 3D error against ground truth (an oracle). Without
-ground truth, the honest score of a setting is how well it predicts image points it did not see:
-each fold hides a random share of the *observed* 2D points (a point in a frame is hidden with both
-its image coordinates), the method reconstructs from the rest, and the fold's score is the mean
-squared reprojection error of the hidden points, ``mean ||w_f(x_j) - R_f s_f(x_j)||^2`` over the
-hidden (f, j), with the frame's camera R_f and the reconstructed 3D point s_f(x_j) (squared unit of
-the tracks). The score is invariant to the global gauge (R_f Q, Q^T s), so estimated cameras need no
-alignment. Nothing here sees the 3D ground truth.
+The paper fixes the kernel method's tau (1e-4) and width (the d_max / d_med rules) by hand, and tunes
+the Table 4 TNH baseline's tau on the 3D error against ground truth (an oracle). Here each fold hides a
+random share of the *observed* 2D points (both image coordinates), the method reconstructs from the
+rest, and the fold's score is the mean squared reprojection error of the hidden points, ``mean
+||w_f(x_j) - R_f s_f(x_j)||^2`` (squared unit of the tracks), invariant to the global gauge. Nothing
+here sees the 3D ground truth.
 
-The search is :class:`nldr.model_selection.HoldoutSearch`, with the 2D points as its entries: the
-tracks W (F, 2P) with NaN at unobserved points are the matrix, a fold hiding the points ``h`` (F, P)
-hides the entries ``[h, h]``, and each candidate is a reconstruction whose completion of W is its
+The search is :class:`nldr.model_selection.HoldoutSearch` with the 2D points as its entries: the tracks
+(F, 2P) with NaN at unobserved points are the matrix, and each candidate is a reconstruction
+(:func:`~nldr.nrsfm.reconstruct`, the method the tables report) whose completion of W is its
 reprojection R_f s_f of every point.
 
-- :func:`visibility_folds`: the hidden points of each fold (same seed, same folds).
-- :func:`select_tnh_tau`: TNH's tau with cameras estimated (Table 4's pipeline).
-- :func:`~nldr.nrsfm.kernel_selection.select_kernel`: the kernel method's tau and width, with known
-  cameras (Table 3) or after :func:`select_tnh_tau` (Table 4's kernel stage), by default keeping the
-  paper's values unless the evidence is against them.
+- :func:`visibility_folds`: the hidden points of each fold (same seed, same folds);
+- :func:`select_tnh_tau`: TNH's tau with cameras estimated (Table 4's pipeline);
+- :func:`select_kernel`: the kernel method's tau and width, with known cameras (Table 3) or after
+  :func:`select_tnh_tau` (Table 4's kernel stage), keeping the paper's values unless the evidence is
+  against them. The candidates of one (fold, width) are solved along tau from the smallest up, each
+  warm-started from its neighbour with the last penalty stage only; a fold computes its start once.
 
-Folds run in parallel with ``n_jobs``.
-
-Layouts as in :mod:`nldr.nrsfm.layout`: tracks W2d (F, 2P), shapes X (F, 3P), cameras R (F, 2, 3),
-visibility masks (F, P), True where observed.
+Layouts as in :mod:`nldr.nrsfm.layout`; folds run in parallel with ``n_jobs``.
 """
 
 from __future__ import annotations
@@ -32,6 +27,7 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
@@ -41,106 +37,38 @@ from .._cv import positive_grid
 from .._options import last_stage_only
 from .._validation import check_count, check_positive
 from ..model_selection import HoldoutSearch
-from ..regularizer import minimize_regularized
 from .factorization import initialize_cameras
-from .reconstruct import WIDTH_RULES, Reconstruction, reconstruct, solver_arguments
-from .reprojection import OrthographicReprojection, check_tracks
-from .tnh import trace_norm_heuristic
-from .variables import CameraFrameVariables
+from .layout import visibility_folds
+from .reconstruct import WIDTH_RULES, Reconstruction, reconstruct, solver_arguments, trace_norm_heuristic
+from .reprojection import check_cameras, check_tracks
 
 __all__ = [
     "DEFAULT_TNH_TAUS",
+    "DEFAULT_KERNEL_TAUS",
+    "PAPER_KERNEL",
+    "MIN_MOVE",
+    "WIDTH_MULTIPLES",
     "visibility_folds",
-    "point_entries",
     "TrackReconstruction",
-    "search_points",
-    "cv_table",
     "TNHTauSelection",
     "select_tnh_tau",
+    "KernelSelection",
+    "select_kernel",
 ]
 
 #: TNH tau grid (unit of the tracks squared): 7 log-spaced values over Table 4's search interval [0.1, 100].
 DEFAULT_TNH_TAUS = tuple(float(t) for t in np.logspace(-1, 2, 7))
-
-# --------------------------------------------------------------------------------------------------
-# Folds, the score, and a reconstruction as an estimator of HoldoutSearch
-# --------------------------------------------------------------------------------------------------
-
-
-def visibility_folds(
-    mask,
-    n_folds: int = 3,
-    random_state=0,
-    *,
-    holdout_fraction: float | None = None,
-    min_per_frame: int = 3,
-    min_per_point: int = 1,
-) -> list[np.ndarray]:
-    """Hidden 2D points of the cross-validation folds: disjoint subsets of the observed points.
-
-    The observed (frame, point) pairs are shuffled with ``random_state``; fold k hides the k-th chunk
-    of ``round(holdout_fraction * n_observed)`` of them (``holdout_fraction=None``: the k-th of
-    ``n_folds`` equal shares, a partition). A fold then un-hides points, in shuffled order, until every
-    frame keeps ``min_per_frame`` observed points for training (an orthographic camera has 5 degrees
-    of freedom: with fewer, the frame's camera and shape are not determined) and every point keeps
-    ``min_per_point`` frames (a point never seen has no track to reconstruct). A frame or point with
-    fewer observations than that in ``mask`` itself is never hidden.
-
-    Parameters
-    ----------
-    mask : bool array, shape (F, P)
-        True where point j is observed in frame f.
-    n_folds : int >= 2, default 3
-    random_state : int or numpy Generator, default 0
-        Seed of the shuffle: the same seed gives the same folds.
-    holdout_fraction : float in (0, 1 / n_folds], optional
-        Share of the observed points each fold hides (before the un-hiding above); default 1 / n_folds.
-    min_per_frame, min_per_point : int >= 0, defaults 3 and 1
-        Training observations every frame and every point keeps.
-
-    Returns
-    -------
-    folds : list of n_folds bool arrays, shape (F, P)
-        True at the points fold k hides: observed, disjoint across folds.
-    """
-    mask = np.asarray(mask)
-    if mask.ndim != 2 or mask.dtype != bool:
-        raise ValueError(f"mask must be a 2-d bool array (F, P); got dtype {mask.dtype}, shape {mask.shape}")
-    n_folds = check_count(n_folds, "n_folds")
-    if n_folds < 2:
-        raise ValueError(f"n_folds must be >= 2; got {n_folds}")
-    if holdout_fraction is None:
-        frac = 1.0 / n_folds
-    else:
-        frac = check_positive(holdout_fraction, "holdout_fraction")
-        if frac * n_folds > 1.0 + 1e-12:
-            raise ValueError(
-                f"holdout_fraction * n_folds must be <= 1 (the folds are disjoint); got {frac} * {n_folds}"
-            )
-    min_per_frame = check_count(min_per_frame, "min_per_frame") if min_per_frame else 0
-    min_per_point = check_count(min_per_point, "min_per_point") if min_per_point else 0
-    observed = np.flatnonzero(mask.ravel())
-    if observed.size < n_folds:
-        raise ValueError(f"mask has {observed.size} observed points, fewer than n_folds = {n_folds}")
-    order = np.random.default_rng(random_state).permutation(observed)
-    size = observed.size // n_folds if holdout_fraction is None else int(round(frac * observed.size))
-    F, P = mask.shape
-    folds = []
-    for k in range(n_folds):
-        chunk = order[k::n_folds] if holdout_fraction is None else order[k * size : (k + 1) * size]
-        hidden = np.zeros(mask.size, dtype=bool)
-        hidden[chunk] = True
-        hidden = hidden.reshape(F, P)
-        for axis, minimum in ((1, min_per_frame), (0, min_per_point)):
-            train = (mask & ~hidden).sum(axis=axis)
-            for idx in np.flatnonzero(train < minimum):
-                # un-hide this frame's (point's) hidden points in shuffled order until it has enough
-                line = chunk[(chunk // P == idx) if axis == 1 else (chunk % P == idx)]
-                need = minimum - train[idx]
-                for flat in line[:need]:
-                    hidden[flat // P, flat % P] = False
-        folds.append(hidden)
-    return folds
+#: Kernel tau grid: the paper's 1e-4 and half a decade either side, then 1e-3. Not 1e-5: with the paper's
+#: schedule (rho up to 10) the solve at 1e-5 stops at its start, the TNH (the regularizer's gradient is
+#: under L-BFGS's gtol; docs/REPRODUCTION.md#selection-nrsfm), so it is TNH, not a kernel candidate.
+DEFAULT_KERNEL_TAUS = (3e-5, 1e-4, 3e-4, 1e-3)
+#: The paper's kernel values as (tau, width multiple): the reference of ``rule="reference"``.
+PAPER_KERNEL = (1e-4, 1.0)
+#: A candidate whose fold solves all moved their start by less than this (relative Frobenius norm) is
+#: inactive: the regularizer did not act, the "solution" is the start method's.
+MIN_MOVE = 1e-3
+#: Kernel widths as multiples of the width rule's gamma (0.5: wider kernel, 2: narrower).
+WIDTH_MULTIPLES = (0.5, 1.0, 2.0)
 
 
 def point_entries(hidden_points: np.ndarray) -> np.ndarray:
@@ -160,17 +88,16 @@ class TrackReconstruction(TransformerMixin, BaseEstimator):
     """A reconstruction as an imputer of image tracks, for :class:`~nldr.model_selection.HoldoutSearch`.
 
     ``fit(X)``: X (F, 2P) are the tracks with NaN at the unobserved points; ``transform`` returns the
-    reprojections R_f s_f (F, 2P) of the fit on every point. ``prior="tnh"``: TNH with estimated
-    cameras at ``tau`` from the rigid cameras of the observed points (``options``: the alternation's).
-    ``prior="kernel"``: the kernel method at ``tau`` and ``width_multiple`` times the ``width_rule``
-    of its start, minimize_regularized with the known ``cameras`` (``depth_scale``: camera-frame
-    L-BFGS) or, with ``cameras=None``, Table 4's kernel stage (:func:`~nldr.nrsfm.reconstruct`);
-    ``options`` are the regularizer's. ``start``: a mapping of the options of the start to compute
-    (the known-camera TNH's; with estimated cameras those of :func:`select_tnh_tau`'s TNH, ``tau``
-    included), or the start itself (a result with shapes ``x``, and cameras ``R`` if estimated).
-    With ``warm_start`` and the same observed points as the previous fit, the start is reused, and a
-    fit at the previous fit's width continues from its answer with the last penalty stage alone.
-    Fitted: ``result_``, ``gamma_`` and ``move_``, the relative change of the start's shapes.
+    reprojections R_f s_f (F, 2P) of the fit on every point. Both priors run
+    :func:`~nldr.nrsfm.reconstruct` with ``options``: ``prior="tnh"`` with estimated cameras at ``tau``
+    from the rigid cameras of the observed points; ``prior="kernel"`` at ``tau`` and ``width_multiple``
+    times the ``width_rule`` of its start, with the known ``cameras`` (``depth_scale``: camera-frame
+    L-BFGS) or, with ``cameras=None``, estimated ones (Table 4's kernel stage). ``start``: a mapping of
+    the options of the start to compute (the known-camera TNH's; with estimated cameras those of
+    :func:`select_tnh_tau`'s TNH, ``tau`` included), or the start itself (shapes ``x``, and cameras
+    ``R`` if estimated). With ``warm_start`` and the same observed points as the previous fit, the start
+    is reused, and a fit at the previous width continues from its answer with the last penalty stage
+    alone. Fitted: ``result_``, ``gamma_`` and ``move_``, the relative change of the start's shapes.
     """
 
     def __init__(self, prior="kernel", tau=1.0, width_multiple=1.0, width_rule="d_med", cameras=None,
@@ -203,19 +130,15 @@ class TrackReconstruction(TransformerMixin, BaseEstimator):
             previous = None  # another width: from the start, with the full schedule
         if previous is not None and self.cameras is None:  # the last stage alone
             options.update(rho0=options.get("rho_max", 10.0), rho_max=options.get("rho_max", 10.0))
+        elif previous is not None:  # the last stage alone, in the full schedule's units
+            options = last_stage_only(solver_arguments(options))
+        if self.cameras is not None and self.depth_scale is not None:  # L-BFGS in the cameras' frames
+            options["depth_scale"] = self.depth_scale
         self.gamma_ = gamma = float(self.width_multiple) * WIDTH_RULES[self.width_rule](start.x)
-        if self.cameras is None:  # Table 4's kernel stage (from the previous answer, warm)
-            self.result_ = reconstruct(
-                W, vis, prior="kernel", tau=float(self.tau), width=gamma, start=previous or start, **options
-            )
-        else:
-            if self.depth_scale is not None:  # the cameras are fixed: L-BFGS in their frames
-                options["variables"] = CameraFrameVariables(self.cameras, vis, self.depth_scale)
-            term, X0 = OrthographicReprojection(W, self.cameras, vis), (previous or start).x
-            arguments = solver_arguments(options)
-            if previous is not None:  # the last stage alone, in the full schedule's units
-                arguments = last_stage_only(arguments)
-            self.result_ = minimize_regularized(term, X0, gamma=gamma, tau=float(self.tau), **arguments)
+        self.result_ = reconstruct(
+            W, vis, cameras="estimate" if self.cameras is None else self.cameras, prior="kernel",
+            tau=float(self.tau), width=gamma, start=previous or start, **options,
+        )  # fmt: skip
         self.visible_, self.fitted_width_ = vis, self.width_multiple
         self.move_ = float(np.linalg.norm(self.result_.x - start.x) / np.linalg.norm(start.x))
         return self
@@ -231,9 +154,8 @@ class TrackReconstruction(TransformerMixin, BaseEstimator):
 
     def transform(self, X):
         """The reprojections (F, 2P) of the fit (whatever X: the fit's own tracks are completed)."""
-        res = self.result_
-        R = self.cameras if self.cameras is not None and self.prior == "kernel" else res.R
-        return (R @ res.x.reshape(R.shape[0], 3, -1)).reshape(R.shape[0], -1)
+        R = self.result_.R
+        return (R @ self.result_.x.reshape(R.shape[0], 3, -1)).reshape(R.shape[0], -1)
 
 
 def search_points(W, mask, folds, estimator, grid, n_jobs, **options) -> HoldoutSearch:
@@ -257,11 +179,6 @@ def cv_table(search, names) -> pd.DataFrame:
         if extra in r:
             out[extra] = r[extra]
     return out
-
-
-# --------------------------------------------------------------------------------------------------
-# TNH's tau with estimated cameras (Table 4)
-# --------------------------------------------------------------------------------------------------
 
 
 @dataclass(repr=False)
@@ -316,12 +233,10 @@ def select_tnh_tau(
 ) -> TNHTauSelection:
     """Choose TNH's tau for NRSfM with unknown cameras by hold-out reprojection error.
 
-    Per fold: rigid factorisation of the training points
-    (:func:`~nldr.nrsfm.factorization.initialize_cameras`), then for every tau TNH with estimated
-    cameras from those cameras (:func:`~nldr.nrsfm.reconstruct` with ``prior="tnh"``: a cold start, to
-    convergence), scored on the fold's hidden points. The tau of smallest mean score is refitted on
-    every observed point from the rigid cameras of all of them: exactly one evaluation of Table 4's
-    oracle search (then the camera search, with ``camera_search``, as Table 4 does at its tau*).
+    Per fold and tau: TNH with estimated cameras (:func:`~nldr.nrsfm.reconstruct`, cold start, to
+    convergence) from the rigid cameras of the training points, scored on the fold's hidden points. The
+    tau of smallest mean score is refitted on every observed point: one evaluation of Table 4's oracle
+    search (then the camera search, with ``camera_search``, as Table 4 does at its tau*).
 
     Parameters
     ----------
@@ -361,3 +276,203 @@ def select_tnh_tau(
     refit_time = time.process_time() - start
     cv = cv_table(search, ["tau"])
     return TNHTauSelection(tau, cv, result, R0, folds, dict(alternation_options), refit_time)
+
+
+@dataclass(repr=False)
+class KernelSelection:
+    """Outcome of :func:`select_kernel`.
+
+    Attributes
+    ----------
+    tau_ : float
+        The chosen trace-norm weight.
+    width_multiple_ : float
+        The chosen multiple of the width rule's gamma.
+    gamma_ : float
+        ``width_multiple_`` times the rule on the refit's start shapes (1 / unit of the tracks squared).
+    cv_results_ : DataFrame
+        One row per candidate, by width multiple then tau: ``tau, width_multiple, mean_test_error``
+        (mean squared hidden reprojection error, unit of the tracks squared), ``std_test_error``,
+        ``fit_time`` (mean seconds per fold solve; warm-started candidates are cheaper),
+        ``max_move`` (largest relative change of the start shapes over the folds), ``active``
+        (``max_move >= min_move``); with ``rule="reference"`` also ``mean_diff_reference`` and
+        ``se_diff_reference``: mean and standard error over folds of the score minus the
+        reference's score in the same fold.
+    result_ : Reconstruction
+        The refit on every observed point (:func:`~nldr.nrsfm.reconstruct`, the kernel prior), with the
+        known cameras or (after :func:`select_tnh_tau`) estimated ones.
+    fold_scores_ : DataFrame, shape (n_folds, n_candidates)
+        Hold-out score of every candidate (columns: (width_multiple, tau), as the rows of
+        ``cv_results_``) in every fold (rows): the paired values behind ``rule="reference"``.
+    folds_ : list of bool arrays, shape (F, P)
+    start_ : (R, X)
+        Cameras (F, 2, 3) and shapes (F, 3P) the refit started from.
+    refit_time_ : float
+        CPU seconds of the refit's kernel solve alone: the cost of one solve.
+    """
+
+    tau_: float
+    width_multiple_: float
+    gamma_: float
+    cv_results_: pd.DataFrame
+    fold_scores_: pd.DataFrame
+    result_: object
+    folds_: list
+    start_: tuple
+    refit_time_: float
+
+    def __repr__(self) -> str:
+        return (
+            f"KernelSelection(tau_={self.tau_:.4g}, width_multiple_={self.width_multiple_:g}, "
+            f"gamma_={self.gamma_:.4g}, candidates={len(self.cv_results_)})"
+        )
+
+
+def select_kernel(
+    W2d,
+    mask=None,
+    *,
+    R=None,
+    tnh: TNHTauSelection | None = None,
+    taus=None,
+    width_multiples=None,
+    width_rule: str = "d_med",
+    n_folds: int = 3,
+    holdout_fraction: float | None = None,
+    random_state=0,
+    warm_start: bool = True,
+    rule: str = "reference",
+    reference=PAPER_KERNEL,
+    min_move: float = MIN_MOVE,
+    tnh_options: Mapping | None = None,
+    X_start=None,
+    camera_options: Mapping | None = None,
+    depth_scale: float | None = None,
+    n_jobs: int = 1,
+    **regularizer_options,
+) -> KernelSelection:
+    """Choose the kernel regularizer's tau and width for NRSfM by hold-out reprojection error.
+
+    Give exactly one of ``R`` (known cameras, Table 3) or ``tnh`` (a :func:`select_tnh_tau` result,
+    Table 4). Candidate gammas are ``width_multiples`` times the ``width_rule`` on each fold's start
+    shapes, so the chosen quantity is the multiple; the refit applies it to its own start.
+
+    Parameters
+    ----------
+    W2d : array, shape (F, 2P)
+        Centred image tracks as rows.
+    mask : bool array, shape (F, P), optional
+        Visibility; default all observed. With ``tnh``, must be the mask it was selected on.
+    R : array, shape (F, 2, 3), optional
+        Known cameras. Each fold (and the refit) starts from the exact-fit TNH of its training points
+        (:func:`~nldr.nrsfm.trace_norm_heuristic` with ``tnh_options``).
+    tnh : TNHTauSelection, optional
+        Unknown cameras: its folds are reused, each fold starts from that fold's TNH (cameras and shapes)
+        at the selected tau; every fold solve and the refit (from ``tnh.result_``) optimise cameras and
+        shapes jointly (:func:`~nldr.nrsfm.reconstruct`, the fold solves from one start each, the refit
+        with ``camera_options``, e.g. ``multistart``).
+    taus : sequence of float > 0, optional
+        Default :data:`DEFAULT_KERNEL_TAUS`.
+    width_multiples : sequence of float > 0, optional
+        Default :data:`WIDTH_MULTIPLES`.
+    width_rule : {"d_med", "d_max"}, default "d_med"
+        The paper's rule the multiples scale (:data:`~nldr.nrsfm.reconstruct.WIDTH_RULES`).
+    n_folds, holdout_fraction, random_state
+        Folds of :func:`visibility_folds` (known cameras only; ``tnh`` brings its own).
+    warm_start : bool, default True
+        Solve each (fold, width) along tau, smallest first, warm-starting with the last penalty stage.
+    rule : {"reference", "min"}, default "reference"
+        HoldoutSearch's rule over the eligible candidates. "min": the smallest mean hold-out error.
+        "reference": the ``reference`` candidate, unless candidates beat it by more than one standard
+        error of their per-fold (paired) score differences from it; then the one of those with the
+        smallest mean (the score's spread over folds exceeds the candidates' differences:
+        docs/REPRODUCTION.md#selection-nrsfm).
+    reference : (tau, width_multiple), default :data:`PAPER_KERNEL`
+        The default of ``rule="reference"`` (the paper's tau and width rule); must be on the grid.
+    min_move : float >= 0, default :data:`MIN_MOVE`
+        A candidate whose solve moved the start shapes by less than ``min_move`` (relative Frobenius
+        norm) in every fold is inactive (its score is the start's, TNH's) and not eligible, unless no
+        candidate is active.
+    tnh_options : mapping, optional
+        Options of the known-camera TNH (default: exact fit by ADMM).
+    X_start : array, shape (F, 3P), optional
+        With ``R``: the refit's start, the TNH on every observed point with ``tnh_options``, when the
+        caller has it already (default: computed here).
+    camera_options : mapping, optional
+        With ``tnh``: options of the refit alone (e.g. ``multistart``).
+    depth_scale : float > 0, optional
+        With ``R``, run the fold solves and the refit in :class:`~nldr.nrsfm.CameraFrameVariables`
+        with this scale: the same minimisers, far fewer L-BFGS iterations
+        (docs/REPRODUCTION.md#table-3-solver). Default: L-BFGS on the shapes themselves.
+    n_jobs : int >= 1
+        Processes over the folds.
+    **regularizer_options
+        Passed to :func:`~nldr.regularizer.minimize_regularized` (``rho0, rho_growth, rho_max, center,
+        max_inner, ...``) in the folds and the refit.
+
+    Returns
+    -------
+    KernelSelection
+        Ties go to the first row of ``cv_results_`` (smaller width multiple, then smaller tau).
+    """
+    W, mask = check_tracks(W2d, mask)
+    if (R is None) == (tnh is None):
+        raise ValueError("give exactly one of R (known cameras) or tnh (a select_tnh_tau result)")
+    if width_rule not in WIDTH_RULES:
+        raise ValueError(f"width_rule must be one of {tuple(WIDTH_RULES)}; got {width_rule!r}")
+    for key in sorted({"gamma", "tau", "variables"} & set(regularizer_options)):
+        raise ValueError(
+            f"regularizer option {key!r} is set by select_kernel; remove it (or use depth_scale)"
+        )
+    if depth_scale is not None:
+        depth_scale = check_positive(depth_scale, "depth_scale")
+    n_jobs = check_count(n_jobs, "n_jobs")
+    taus = positive_grid(DEFAULT_KERNEL_TAUS if taus is None else taus, "taus")
+    multiples = positive_grid(
+        WIDTH_MULTIPLES if width_multiples is None else width_multiples, "width_multiples"
+    )
+    if rule not in ("reference", "min"):
+        raise ValueError(f"rule must be 'reference' or 'min'; got {rule!r}")
+    search_rule = {"rule": rule}
+    if rule == "reference":
+        if np.shape(reference) != (2,):
+            raise ValueError(f"reference must be a pair (tau, width_multiple); got {reference!r}")
+        search_rule["reference"] = {"tau": float(reference[0]), "width_multiple": float(reference[1])}
+    if R is not None:
+        R = check_cameras(R, mask.shape[0])
+        tnh_options = dict(tnh_options or {})
+        folds = visibility_folds(mask, n_folds, random_state, holdout_fraction=holdout_fraction)
+        start, fold_options = tnh_options, dict(regularizer_options)
+    else:
+        if tnh.folds_[0].shape != mask.shape or np.any(tnh.folds_[0] & ~mask):
+            raise ValueError("tnh was selected on another mask; pass the mask of select_tnh_tau")
+        folds, start = tnh.folds_, {"tau": tnh.tau_, **tnh.options_}
+        fold_options = {"multistart": False, **regularizer_options}  # the fold solves: one start each
+    estimator = TrackReconstruction(
+        width_rule=width_rule, cameras=R, start=start, options=fold_options, depth_scale=depth_scale
+    )
+    grid = [{"width_multiple": [float(m)], "tau": taus.tolist()} for m in multiples]
+    path = {"path": "tau"} if warm_start else {}
+    search = search_points(W, mask, folds, estimator, grid, n_jobs, min_move=min_move, **search_rule, **path)
+    cv = cv_table(search, ["tau", "width_multiple"])
+    columns = pd.MultiIndex.from_arrays([cv["width_multiple"], cv["tau"]], names=["width_multiple", "tau"])
+    splits = [search.cv_results_[f"split{k}_test_error"] for k in range(len(folds))]
+    scores = pd.DataFrame(np.array(splits), columns=columns).rename_axis(index="fold")
+    best = search.best_params_
+    if R is not None:  # the refit from the TNH of every observed point
+        X0 = trace_norm_heuristic(W, R, mask, **tnh_options).x if X_start is None else X_start
+        X0 = np.asarray(X0, dtype=np.float64)
+        if X0.shape != (mask.shape[0], 3 * mask.shape[1]):
+            raise ValueError(f"X_start must have shape (F, 3P) = {(mask.shape[0], 3 * mask.shape[1])}")
+        refit = estimator.set_params(start=SimpleNamespace(x=X0), **best)
+    else:  # from the TNH refit, with camera_options
+        options = {**dict(camera_options or {}), **regularizer_options}
+        refit = estimator.set_params(start=tnh.result_, options=options, **best)
+    begin = time.process_time()
+    refit.fit(np.where(point_entries(mask), W, np.nan))
+    seconds = time.process_time() - begin
+    start = (R if R is not None else tnh.result_.R, refit.start_.x)
+    return KernelSelection(
+        float(best["tau"]), float(best["width_multiple"]), refit.gamma_, cv, scores, refit.result_, folds,
+        start, seconds,
+    )  # fmt: skip

@@ -1,140 +1,354 @@
-"""Trace-norm heuristic (TNH) for NRSfM with known cameras: the paper's linear baseline (eq. 12).
+"""The trace-norm heuristic's shared pieces: its result type, singular value thresholding, and the
+penalised TNH by accelerated proximal gradient (FISTA).
 
-Penalised form, for tau > 0::
+TNH (the paper's eq. 12, known cameras) for shapes as rows X (F, 3P), tracks W (F, 2P), cameras R
+(F, 2, 3) and visibility Z (F, P), penalised (tau > 0) or in its exact-fit limit (tau -> 0)::
 
     min_X  tau ||X||_*  +  sum_{f,j} Z_fj ||w_f(x_j) - R_f s_f(x_j)||^2
-
-Exact-fit form, the limit tau -> 0 (noise-free data; Dai, Li & He 2012)::
-
     min_X  ||X||_*   subject to   R_f s_f(x_j) = w_f(x_j)  for every observed (f, j)
 
-X is the (F, 3P) shape matrix (shapes as rows; its nuclear norm equals that of the paper's (3P, F)
-matrix). The paper runs TNH with ground-truth cameras and tau = 1e-7 in the data's original units; at
-that strength the penalised problem is the exact-fit problem in practice, and the exact-fit form is the
-numerically sound way to solve it. Measured on pickup (every 10th frame): the penalised form with
-tau = 1e-7 has an optimal value ~1e-5, below what SCS resolves; SCS at eps 1e-5 stopped early at an
-exact fit of the wrong nuclear norm (e3D 0.55) and at eps 1e-7 did not finish in reasonable time. With
-tau = 1e-4 ... 1e-3 the penalised form solves normally and gives the exact fit's e3D (0.0475) to 4
-digits.
+The entry point is :func:`~nldr.nrsfm.trace_norm_heuristic`; its backends are the ADMM of
+:mod:`nldr.nrsfm.admm` (the exact fit, and the robust TNH), :func:`solve_fista` here (penalised) and
+:mod:`nldr.nrsfm.cvxpy_tnh` (the conic reference). :func:`fista_tnh` is also the shape step of Table 4's
+camera/shape alternation (:mod:`nldr.nrsfm.camera_refinement`).
 
-:func:`trace_norm_heuristic` is the one entry point; ``method`` picks the solver:
+Singular value thresholding, ``prox_{t ||.||_*}(Y) = U (S - t)_+ V^T``, comes two ways:
+:func:`soft_threshold_singular_values` by a thin SVD (the accurate one), and
+:func:`soft_threshold_singular_values_gram` through the eigendecomposition of the small Gram matrix of
+Y's short side, the default of every solver here. Maintenance note (the Gram version): eigenvalues of
+a Gram matrix carry an absolute error of order eps s_max^2, so the singular values are recomputed as
+the row norms of U^T Y (Rayleigh-Ritz), accurate to eps ||Y|| like an SVD's; what stays less accurate is
+the orthogonality of the right singular vectors of components near the threshold, O(eps s_max^2 / t^2),
+so the Gram path is taken only while n eps s_max^2 <= :data:`GRAM_SAFETY` t^2 and the SVD otherwise
+(docs/PERFORMANCE.md, "Scale").
 
-``"admm"`` (default)
-    The exact-fit form (tau None or 0) by ADMM (:mod:`nldr.nrsfm.admm`): cost per iteration linear in
-    F, so full-length sequences are fine; a certified duality gap.
-``"fista"``
-    The penalised form (tau > 0) by accelerated proximal gradient (:mod:`nldr.nrsfm.fista`).
-``"cvxpy"``
-    Either form as a semidefinite program through cvxpy (:mod:`nldr.nrsfm.cvxpy_tnh`; an optional
-    dependency): the reference oracle for small problems. For a tau sweep, use
-    :class:`~nldr.nrsfm.cvxpy_tnh.CvxpyTNH` directly, which compiles once.
-
-Every method returns a :class:`~nldr.nrsfm.tnh_result.TNHResult`.
+Maintenance note (FISTA's step). The data term has gradient -2 R_f^T (Z_f o (W_f - R_f S_f)) per frame
+and Lipschitz constant 2 max_f ||R_f||_2^2; the step is 1 / L. The momentum restarts whenever the
+objective increases (O'Donoghue & Candes 2015), which keeps the objective monotone. The residual at the
+extrapolated point is the same extrapolation of the last two residuals (it is affine in the shapes).
 """
 
 from __future__ import annotations
 
-import inspect
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
-from .._validation import check_positive
-from .admm import solve_admm
-from .fista import solve_fista
-from .reprojection import OrthographicReprojection
-from .tnh_result import TNHResult, TNHSolveError
+import numpy as np
 
-__all__ = ["METHODS", "TNHResult", "TNHSolveError", "trace_norm_heuristic"]
+from .._spectral import shrink_singular_values
+from .._validation import check_count, check_positive
+from ..result import SolverResult, status_from
+from .reprojection import OrthographicReprojection, check_shapes, masked_residual, visibility_weights
 
-#: The solvers of :func:`trace_norm_heuristic` (``method`` is case-insensitive).
-METHODS = ("admm", "fista", "cvxpy")
+__all__ = [
+    "GRAM_SAFETY",
+    "TNHResult",
+    "TNHSolveError",
+    "FistaResult",
+    "fit_summary",
+    "soft_threshold_singular_values",
+    "soft_threshold_singular_values_gram",
+    "fista_tnh",
+    "solve_fista",
+]
 
-_CVXPY_OPTIONS = ("solver", "solver_options", "warm_start", "verbose")
+_EPS = float(np.finfo(np.float64).eps)
+#: The Gram path needs n eps s_max^2 <= GRAM_SAFETY t^2 (see the module's maintenance note).
+GRAM_SAFETY = 1e-4
 
 
-def _keyword_options(backend) -> tuple[str, ...]:
-    return tuple(
-        name for name, p in inspect.signature(backend).parameters.items() if p.kind is p.KEYWORD_ONLY
-    )
+class TNHSolveError(RuntimeError):
+    """The conic solver failed or did not return an optimal solution; the message has the status."""
 
 
-def trace_norm_heuristic(
-    W2d, R, mask=None, *, tau: float | None = None, method: str = "admm", **options
-) -> TNHResult:
-    """Solve TNH with known cameras, exact-fit (``tau`` None or 0) or penalised (``tau > 0``).
+@dataclass(kw_only=True, repr=False)
+class TNHResult(SolverResult):
+    """Result of a TNH solve (:func:`~nldr.nrsfm.trace_norm_heuristic`), a
+    :class:`~nldr.result.SolverResult`.
+
+    Attributes
+    ----------
+    x : array, shape (F, 3P)
+        Estimated shapes as rows, in the unit of the image tracks.
+    fun : float
+        The objective at ``x``: ||X||_* for the exact fit, tau ||X||_* + reprojection error otherwise.
+        ADMM and FISTA evaluate it at ``x``; cvxpy reports the conic solver's optimal value.
+    status : int
+        CONVERGED: the solver met its tolerance (cvxpy: status ``optimal``); MAX_ITER: it reached its
+        iteration cap (ADMM, FISTA); INACCURATE: cvxpy's ``optimal_inaccurate``.
+    message : str
+        Why the solver stopped.
+    nit : int
+        Iterations of the solver (cvxpy: as the conic solver reports them, 0 if it does not).
+    wall_time : float
+        Seconds of wall-clock time (cvxpy: of ``problem.solve``, compilation on a first solve included).
+    method : str
+        ``"admm"``, ``"admm_l1"`` (robust TNH), ``"fista"`` or ``"cvxpy"``.
+    solver : str
+        ``"ADMM"``, ``"FISTA"`` or the name of the conic solver (``"SCS"``, ``"CLARABEL"``, ...).
+    tau : float
+        Regularisation strength; 0.0 for the exact-fit form.
+    exact_fit : bool
+        True when solved with equality constraints (the tau -> 0 limit).
+    nuclear_norm : float
+        ||X||_* of the returned X (ADMM, cvxpy: recomputed with an SVD; FISTA: from its last
+        thresholding).
+    reprojection_error : float
+        Sum over observed points of squared reprojection errors of the returned X (unit squared).
+    max_abs_residual : float
+        Largest absolute reprojection residual over observed coordinates (unit of the tracks).
+    options : dict
+        The options the solver ran with (defaults filled in). ADMM adds ``final_beta``, its adapted
+        penalty; cvxpy: the conic solver's options.
+    dual : array or None
+        ADMM only: the exact fit's multiplier Y (F, 3P) of the splitting X = Z (dimensionless; a
+        subgradient of ||.||_* in the row space of the constraints, see :mod:`nldr.nrsfm.admm`); the
+        robust TNH's dual-feasible multiplier of the residuals (F, 2P).
+    duality_gap : float or None
+        ADMM only: ``fun`` minus a certified lower bound on the optimum (unit of the tracks).
+    solver_time : float or None
+        cvxpy only: seconds inside the conic solver, as it reports them.
+    """
+
+    method: str
+    solver: str
+    tau: float
+    exact_fit: bool
+    nuclear_norm: float
+    reprojection_error: float
+    max_abs_residual: float
+    options: dict = field(default_factory=dict)
+    dual: np.ndarray | None = None
+    duality_gap: float | None = None
+    solver_time: float | None = None
+
+
+def fit_summary(term: OrthographicReprojection, X: np.ndarray) -> dict[str, float]:
+    """``nuclear_norm`` (by an SVD), ``reprojection_error`` and ``max_abs_residual`` of shapes X
+    (F, 3P) under the reprojection term: the fit fields of a :class:`TNHResult`."""
+    r = term.residuals(X)
+    return {
+        "nuclear_norm": float(np.linalg.svd(X, compute_uv=False).sum()),
+        "reprojection_error": float(r @ r),
+        "max_abs_residual": float(np.max(np.abs(r))) if r.size else 0.0,
+    }
+
+
+def soft_threshold_singular_values(Y: np.ndarray, t: float) -> tuple[np.ndarray, float]:
+    """Singular value soft-thresholding of Y (m, n) at t >= 0 by a thin SVD: ``U (S - t)_+ V^T``
+    (m, n) and its nuclear norm ``sum (s_i - t)_+``."""
+    X, kept = shrink_singular_values(Y, t)
+    return X, float(kept.sum())
+
+
+def soft_threshold_singular_values_gram(Y: np.ndarray, t: float) -> tuple[np.ndarray, float]:
+    """Singular value soft-thresholding of Y (m, n) at t > 0 through the Gram matrix of its short side.
+
+    Returns the thresholded matrix (m, n) and its nuclear norm, like
+    :func:`soft_threshold_singular_values`. With A the short-side orientation of Y (k x N, k <= N) and
+    A A^T = U diag(lam) U^T, the singular values are ||U^T A||'s row norms (see the module note) and the
+    result is U_+ diag(1 - t / s_+) U_+^T A over the components with s > t. Falls back to the SVD when
+    the eigenvalue error eps s_max^2 is not negligible against t^2.
+    """
+    transpose = Y.shape[0] > Y.shape[1]
+    A = Y.T if transpose else Y
+    lam, U = np.linalg.eigh(A @ A.T)  # ascending
+    noise = A.shape[0] * _EPS * max(float(lam[-1]), 0.0)
+    if noise > GRAM_SAFETY * t * t:
+        return soft_threshold_singular_values(Y, t)
+    first = int(np.searchsorted(lam, 0.25 * t * t))  # candidates: s >= t / 2 by the (inaccurate) eigenvalues
+    U = U[:, first:]
+    B = U.T @ A
+    s = np.sqrt(np.einsum("ij,ij->i", B, B))
+    keep = s > t
+    if not keep.any():
+        return np.zeros_like(Y), 0.0
+    s = s[keep]
+    X = (U[:, keep] * (1.0 - t / s)) @ B[keep]
+    return (X.T if transpose else X), float((s - t).sum())
+
+
+def _lipschitz_step(R: np.ndarray) -> float:
+    """1 / L with L = 2 max_f ||R_f||_2^2, from the 2x2 Gram matrices R_f R_f^T in closed form."""
+    G = R @ R.transpose(0, 2, 1)
+    a, b, c = G[:, 0, 0], G[:, 0, 1], G[:, 1, 1]
+    top = 0.5 * (a + c) + np.sqrt(0.25 * (a - c) ** 2 + b * b)
+    return 1.0 / (2.0 * max(float(top.max()), 1e-12))
+
+
+@dataclass(kw_only=True, repr=False)
+class FistaResult(SolverResult):
+    """Result of :func:`fista_tnh` (a :class:`~nldr.result.SolverResult`).
+
+    Attributes
+    ----------
+    x : array, shape (F, 3, P)
+        The last iterate, in the batched layout of the input (``x.reshape(F, 3 * P)``: shapes as rows).
+    fun : float
+        tau ||x||_* + reprojection error.
+    status, message, nit, wall_time
+        As in :class:`~nldr.result.SolverResult`; CONVERGED when the relative objective decrease of an
+        iteration fell below ``tol``, MAX_ITER otherwise.
+    nuclear_norm, reprojection_error : float
+        The two parts of the objective.
+    momentum : (array (F, 3, P), float, float)
+        ``(X_before, beta, t)``: the state to continue from (pass it back as ``momentum`` with
+        ``X=x``).
+    """
+
+    nuclear_norm: float
+    reprojection_error: float
+    momentum: tuple[np.ndarray, float, float]
+
+
+def fista_tnh(
+    W3: np.ndarray,
+    m3: np.ndarray | None,
+    R: np.ndarray,
+    X: np.ndarray,
+    x_nuclear: float,
+    tau: float,
+    max_iter: int,
+    tol: float,
+    svt: Callable[[np.ndarray, float], tuple[np.ndarray, float]] = soft_threshold_singular_values_gram,
+    momentum: tuple[np.ndarray, float, float] | None = None,
+) -> FistaResult:
+    """FISTA with restarts for penalised TNH on validated batched arrays (no checks), warm-startable.
+
+    Minimises ``tau ||X||_* + sum_f ||m_f o (W_f - R_f X_f)||^2`` from ``X``; stops when the relative
+    decrease of the objective in one iteration is below ``tol``, or after ``max_iter`` iterations.
 
     Parameters
     ----------
-    W2d : array, shape (F, 2P)
-        Image tracks as rows (row f = x of the P points, then y), length unit of the data. Entries of
-        unobserved points are ignored (they may be NaN).
+    W3 : array, shape (F, 2, P)
+        Tracks, zero where unobserved.
+    m3 : array, shape (F, 1, P) or None
+        :func:`~nldr.nrsfm.reprojection.visibility_weights` of the mask (None: all observed).
     R : array, shape (F, 2, 3)
-        Known orthographic cameras.
-    mask : bool array, shape (F, P), optional
-        True where point j is observed in frame f (both coordinates). Default: all observed.
-    tau : float >= 0 or None, default None
-        Weight of ||X||_* against the sum of squared reprojection errors (the data's squared unit per
-        unit of nuclear norm). None or 0 solves the exact-fit form.
-    method : {"admm", "fista", "cvxpy"}, default "admm"
-        The solver, case-insensitive (see the module docstring). ``"admm"`` solves the exact fit only,
-        ``"fista"`` the penalised form only, ``"cvxpy"`` both.
-    **options
-        Options of the method's solver:
+        Cameras.
+    X : array, shape (F, 3, P)
+        Start (not modified).
+    x_nuclear : float
+        ||X||_* of the start.
+    tau : float > 0
+        Trace-norm weight, in the unit of the tracks squared.
+    max_iter : int >= 1
+    tol : float > 0
+        Relative objective decrease that stops the loop.
+    svt : callable, default :func:`soft_threshold_singular_values_gram`
+        ``svt(Y (F, 3P), t) -> (X, nuclear norm)``, singular value soft-thresholding.
+    momentum : (array (F, 3, P), float, float), optional
+        ``(X_before, beta, t)``: continue an earlier run (the ``momentum`` of its result, whose last
+        iterate is ``X``) from the extrapolated point X + beta (X - X_before) with its t, instead of
+        from X with t = 1. The first step is then checked by the restart test like any other, so the
+        objective still never increases. Used by the camera/shape alternation, where the cameras, hence
+        the objective, change a little between runs.
 
-        - ``"admm"``: ``tol`` (default 1e-6), ``max_iter``, ``beta``, ``X0``, ``Y0``, ``relaxation``,
-          ``adaptive``, ``verbose``; see :func:`~nldr.nrsfm.admm.solve_admm`. Warm start from a
-          previous result ``res``: ``X0=res.x, Y0=res.dual, beta=res.options["final_beta"]``.
-        - ``"fista"``: ``X0``, ``max_iter``, ``tol``; see :func:`~nldr.nrsfm.fista.solve_fista`.
-        - ``"cvxpy"``: ``solver`` (a conic solver, default ``"SCS"``), ``solver_options``,
-          ``warm_start``, ``verbose``; see :meth:`~nldr.nrsfm.cvxpy_tnh.CvxpyTNH.solve`.
+    Returns
+    -------
+    FistaResult
+    """
+    start = time.perf_counter()
+    F, _, P = X.shape
+    Rt = R.transpose(0, 2, 1)
+    step = _lipschitz_step(R)
+    thresh = step * tau
+
+    def residual(S):
+        return masked_residual(W3, m3, R, S)
+
+    E_x = residual(X)
+    f_prev = tau * x_nuclear + float(np.vdot(E_x, E_x))
+    Y, E_y, t = X, E_x, 1.0
+    carried = (X, 0.0, 1.0)
+    if momentum is not None and momentum[1] > 0.0:
+        X_before, beta, t = momentum
+        Y = X + beta * (X - X_before)
+        E_y = residual(Y)
+        carried = momentum
+    converged, message, it = False, f"reached max_iter={max_iter}", 0
+    for it in range(1, max_iter + 1):
+        # Y - step * grad g(Y), grad g(Y) = -2 R^T (M o (W - R Y))
+        X_new, nuclear = svt((Y + (2.0 * step) * (Rt @ E_y)).reshape(F, 3 * P), thresh)
+        X_new = X_new.reshape(F, 3, P)
+        E_new = residual(X_new)
+        f_new = tau * nuclear + float(np.vdot(E_new, E_new))
+        if f_new > f_prev and t > 1.0:
+            # momentum overshot: restart from the last iterate with a plain proximal step
+            Y, E_y, t = X, E_x, 1.0
+            carried = (X, 0.0, 1.0)
+            continue
+        t_new = (1.0 + np.sqrt(1.0 + 4.0 * t * t)) / 2.0
+        beta = (t - 1.0) / t_new
+        Y = X_new + beta * (X_new - X)
+        E_y = E_new + beta * (E_new - E_x)  # the residual is affine in the shapes
+        decrease = (f_prev - f_new) / max(abs(f_new), 1e-300)
+        carried = (X, beta, t_new)
+        X, E_x, x_nuclear, t, f_prev = X_new, E_new, nuclear, t_new, f_new
+        if decrease < tol:  # a negative value here is rounding at the optimum (t = 1 steps are monotone)
+            converged, message = (
+                True,
+                f"relative objective decrease {decrease:.2g} < tol after {it} iterations",
+            )
+            break
+    reprojection_error = float(np.vdot(E_x, E_x))
+    return FistaResult(
+        x=X,
+        fun=tau * x_nuclear + reprojection_error,
+        status=status_from(converged),
+        message=message,
+        nit=it,
+        wall_time=time.perf_counter() - start,
+        nuclear_norm=x_nuclear,
+        reprojection_error=reprojection_error,
+        momentum=carried,
+    )
+
+
+def solve_fista(
+    term: OrthographicReprojection, *, tau: float, X0=None, max_iter: int = 5000, tol: float = 1e-10
+) -> TNHResult:
+    """Penalised TNH ``min tau ||X||_* + sum Z ||w - R s||^2`` over the shapes X by FISTA with restarts:
+    the backend of ``trace_norm_heuristic(W2d, R, mask, tau=tau, method="fista", ...)``.
+
+    Parameters
+    ----------
+    term : OrthographicReprojection
+        Tracks, cameras and visibility (validated).
+    tau : float > 0
+        Trace-norm weight, in the unit of the tracks squared.
+    X0 : array, shape (F, 3P), optional
+        Warm start; default zeros.
+    max_iter : int, default 5000
+    tol : float > 0, default 1e-10
+        Stop when the relative decrease of the objective in one iteration is below tol.
 
     Returns
     -------
     TNHResult
-        ``x`` the shapes (F, 3P) in the unit of the tracks, ``fun`` the objective, ``success``,
-        ``status``, ``message``, ``nit``, ``wall_time`` and the fit (``nuclear_norm``,
-        ``reprojection_error``, ``max_abs_residual``); ADMM adds its ``dual`` and ``duality_gap``.
-
-    Raises
-    ------
-    ValueError
-        For malformed inputs, an unknown method or option, a negative tau, ``method="admm"`` with
-        tau > 0, ``method="fista"`` without tau > 0, or an infeasible exact fit (ADMM).
-    ImportError
-        ``method="cvxpy"`` without cvxpy installed (``pip install nldr[cvxpy]``).
-    TNHSolveError
-        ``method="cvxpy"``: the conic solver failed or did not reach an optimal status.
-
-    Examples
-    --------
-    >>> exact = trace_norm_heuristic(W2d, R, mask)                    # doctest: +SKIP
-    >>> penalised = trace_norm_heuristic(W2d, R, mask, tau=0.1, method="fista")  # doctest: +SKIP
+        ``method="fista"``, ``solver="FISTA"``; ``nuclear_norm`` from the last thresholding.
     """
-    name = method.lower() if isinstance(method, str) else method
-    if name not in METHODS:
-        raise ValueError(f"method must be one of {METHODS} (case-insensitive); got {method!r}")
-    tau_value = 0.0 if tau is None else check_positive(tau, "tau", allow_zero=True)
-    if name == "admm" and tau_value != 0.0:
-        raise ValueError(
-            f"method 'admm' solves the exact-fit form only (tau None or 0); got tau={tau_value:g}. "
-            f"Use method='fista' (or 'cvxpy') for tau > 0"
-        )
-    if name == "fista" and tau_value == 0.0:
-        raise ValueError(
-            "method 'fista' solves the penalised form, tau > 0; use method='admm' for the exact fit"
-        )
-    allowed = {
-        "admm": _keyword_options(solve_admm),
-        "fista": tuple(o for o in _keyword_options(solve_fista) if o != "tau"),  # tau is our argument
-        "cvxpy": _CVXPY_OPTIONS,
-    }[name]
-    unknown = sorted(set(options) - set(allowed))
-    if unknown:
-        raise ValueError(f"unknown options for method {name!r}: {unknown}; allowed: {sorted(allowed)}")
-
-    if name == "cvxpy":
-        from .cvxpy_tnh import CvxpyTNH  # cvxpy is optional: imported only here
-
-        return CvxpyTNH(W2d, R, mask).solve(tau, **options)
-    term = OrthographicReprojection(W2d, R, mask)  # validates the tracks, cameras and mask
-    if name == "admm":
-        return solve_admm(term, **options)
-    return solve_fista(term, tau=tau_value, **options)
+    start = time.perf_counter()
+    tau, tol, max_iter = (
+        check_positive(tau, "tau"),
+        check_positive(tol, "tol"),
+        check_count(max_iter, "max_iter"),
+    )
+    F, P = term.n_frames, term.n_points
+    X, x_nuclear = np.zeros((F, 3, P)), 0.0
+    if X0 is not None:
+        X = check_shapes(X0, F, P, name="X0")
+        x_nuclear = float(np.linalg.svd(X, compute_uv=False).sum())
+        X = X.reshape(F, 3, P)
+    out = fista_tnh(
+        term.W.reshape(F, 2, P), visibility_weights(term.mask), term.R, X, x_nuclear, tau, max_iter, tol
+    )
+    r = term.residuals(out.x.reshape(F, 3 * P))
+    return TNHResult(
+        x=out.x.reshape(F, 3 * P), fun=out.fun, status=out.status, message=out.message, nit=out.nit,
+        wall_time=time.perf_counter() - start, method="fista", solver="FISTA", tau=tau, exact_fit=False,
+        nuclear_norm=out.nuclear_norm, reprojection_error=out.reprojection_error,
+        max_abs_residual=float(np.max(np.abs(r))) if r.size else 0.0,
+        options={"max_iter": max_iter, "tol": tol},
+    )  # fmt: skip

@@ -10,7 +10,7 @@ tolerance 1e-12 (at most 300 iterations), thresholding by a full SVD. The produc
 from __future__ import annotations
 
 from ..nrsfm.camera_refinement import CameraShapeResult, tnh_alternation
-from ..nrsfm.svt import soft_threshold_singular_values
+from ..nrsfm.tnh import soft_threshold_singular_values
 
 __all__ = ["tnh_with_camera_refinement_reference"]
 
