@@ -77,7 +77,7 @@ def main(argv=None):
                         e3d_after=e3d(found.x, X_gt, P, align=True),
                         camera_error_before=camera_error(start.R, seq.R),
                         camera_error_after=camera_error(found.R, seq.R),
-                        alternations=found.n_alternations,
+                        alternations=found.search["n_alternations"],
                         cpu_alternation=t1 - t0,
                         cpu_search=t2 - t1,
                         message=found.message,

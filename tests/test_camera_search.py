@@ -86,8 +86,8 @@ def test_search_from_turned_frames_never_raises_the_energy_and_repeats():
     start = tnh_with_camera_refinement(W, None, turned(R, [6, 7]), tau, max_outer=2000)
     out = tnh_camera_search(W, None, start, tau, max_outer=2000)
     assert out.fun <= tnh_energy(W, None, start.R, start.x, tau)
-    assert out.energy_history[0] == tnh_energy(W, None, start.R, start.x, tau)
-    for before, after in zip(out.energy_history, out.energy_history[1:], strict=False):
+    assert out.search["energies"][0] == tnh_energy(W, None, start.R, start.x, tau)
+    for before, after in zip(out.search["energies"], out.search["energies"][1:], strict=False):
         assert after < before * (1 - 1e-6)  # a kept round lowers the energy by more than rtol
     again = tnh_camera_search(W, None, start, tau, max_outer=2000)
     assert again.fun == out.fun
@@ -121,6 +121,6 @@ def test_real_data_stretch_search_lowers_the_energy_where_the_alternation_turned
     tau = 0.11
     start = tnh_with_camera_refinement(W, mask, initialize_cameras(W, mask), tau)
     out = tnh_camera_search(W, mask, start, tau, max_rounds=1)
-    assert out.n_alternations >= 1
+    assert out.search["n_alternations"] >= 1
     assert out.fun < start.fun * (1 - 1e-6)
     assert out.fun == pytest.approx(tnh_energy(W, mask, out.R, out.x, tau), rel=1e-12)

@@ -12,15 +12,10 @@ from conftest import nuclear_norm, project, random_rotation, synthetic_sequence
 from nldr.data_terms import DataTerm
 from nldr.nrsfm import TNHSolveError, trace_norm_heuristic
 from nldr.nrsfm.cvxpy_tnh import CvxpyTNH
-from nldr.nrsfm.layout import (
-    cameras_from_stack,
-    cameras_to_stack,
-    random_visibility_mask,
-    rows_to_stack,
-    stack_to_rows,
-)
+from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
 from nldr.nrsfm.metrics import center_per_frame, e3d, e3d_per_frame, ground_truth_sigma, procrustes_rotation
-from nldr.nrsfm.reprojection import OrthographicReprojection
+from nldr.nrsfm.reprojection import OrthographicReprojection, visibility_weights
+from nldr.nrsfm.tnh import fista_tnh
 from nldr.result import CONVERGED, MAX_ITER
 
 # ---------------------------------------------------------------------------------------------------------
@@ -54,22 +49,12 @@ def test_layout_round_trip(dim):
     assert X.shape == (F, dim * P)
     for f in range(F):
         np.testing.assert_array_equal(X[f], M[dim * f : dim * f + dim].ravel())
-    np.testing.assert_array_equal(rows_to_stack(X, P, dim), M)
-    np.testing.assert_array_equal(stack_to_rows(rows_to_stack(X, P, dim), dim), X)
+    np.testing.assert_array_equal(X.reshape(dim * F, P), M)  # the inverse is a reshape
 
 
-def test_cameras_round_trip_and_layout_errors():
-    rng = np.random.default_rng(2)
-    Rs = rng.standard_normal((8, 3))
-    R = cameras_from_stack(Rs)
-    np.testing.assert_array_equal(R[1], Rs[2:4])
-    np.testing.assert_array_equal(cameras_to_stack(R), Rs)
-    with pytest.raises(ValueError, match="Rs"):
-        cameras_from_stack(rng.standard_normal((7, 3)))
+def test_layout_errors():
     with pytest.raises(ValueError, match="multiple of dim"):
         stack_to_rows(np.zeros((7, 4)), 3)
-    with pytest.raises(ValueError, match="columns"):
-        rows_to_stack(np.zeros((2, 12)), 5)
     with pytest.raises(ValueError, match="dim"):
         stack_to_rows(np.zeros((8, 4)), 4)
 
@@ -92,7 +77,7 @@ def test_random_visibility_mask():
 def e3d_brute_force(X_est, X_gt, P):
     """Loop transcription of the definition (per-row population std, as in compareStructs.m)."""
     F = X_gt.shape[0]
-    S_gt, S_est = rows_to_stack(X_gt, P), rows_to_stack(X_est, P)
+    S_gt, S_est = X_gt.reshape(3 * F, P), X_est.reshape(3 * F, P)
     stds = []
     for row in range(3 * F):
         values = S_gt[row]
@@ -319,10 +304,10 @@ def test_tnh_errors():
         trace_norm_heuristic(W, R, method="SCS")  # a conic solver is an option of method="cvxpy"
     with pytest.raises(ValueError, match="solver"):
         trace_norm_heuristic(W, R, method="cvxpy", solver="NO_SUCH_SOLVER")
-    with pytest.raises(ValueError, match="penalised form, tau > 0"):
-        trace_norm_heuristic(W, R, method="fista")
-    with pytest.raises(ValueError, match=r"unknown options for method 'fista': \['beta'\]"):
-        trace_norm_heuristic(W, R, tau=1.0, method="fista", beta=1.0)
+    with pytest.raises(ValueError, match="method must be one of"):
+        trace_norm_heuristic(W, R, tau=1.0, method="fista")  # the penalised form: method="cvxpy"
+    with pytest.raises(ValueError, match=r"unknown options for method 'admm': \['solver'\]"):
+        trace_norm_heuristic(W, R, solver="SCS")
     with pytest.raises(ValueError, match=r"unknown options for method 'cvxpy': \['tol'\]"):
         trace_norm_heuristic(W, R, method="cvxpy", tol=1e-6)
     # a zero camera cannot reproduce non-zero image points: the exact fit is infeasible
@@ -335,7 +320,7 @@ def test_tnh_errors():
 
 
 def test_tnh_cvxpy_is_optional(monkeypatch):
-    """Without cvxpy the ADMM and FISTA methods work and method="cvxpy" says how to install it."""
+    """Without cvxpy the ADMM method works and method="cvxpy" says how to install it."""
     import sys
 
     X, W, R = synthetic_sequence(n_frames=4, n_points=5, seed=17)
@@ -344,7 +329,6 @@ def test_tnh_cvxpy_is_optional(monkeypatch):
     with pytest.raises(ImportError, match=r"pip install nldr\[cvxpy\]"):
         trace_norm_heuristic(W, R, method="cvxpy")
     assert trace_norm_heuristic(W, R).success
-    assert trace_norm_heuristic(W, R, tau=1.0, method="fista").success
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -372,7 +356,17 @@ def test_real_data_tnh_exact_fit_pickup():
 
 
 # ---------------------------------------------------------------------------------------------------------
-# penalised TNH by proximal gradient (method="fista")
+# penalised TNH by proximal gradient (fista_tnh, the shape step of the camera/shape alternation)
+
+
+def fista(W, R, mask=None, *, tau, X0=None, max_iter=5000, tol=1e-10):
+    """fista_tnh on tracks as rows (F, 2P), from zeros or X0 (F, 3P)."""
+    F, P = R.shape[0], W.shape[1] // 2
+    vis = np.ones((F, P), dtype=bool) if mask is None else mask
+    W3 = np.where(np.concatenate([vis, vis], axis=1), W, 0.0).reshape(F, 2, P)
+    X = np.zeros((F, 3, P)) if X0 is None else X0.reshape(F, 3, P)
+    nuclear = float(np.linalg.svd(X.reshape(F, 3 * P), compute_uv=False).sum())
+    return fista_tnh(W3, visibility_weights(vis), R, X, nuclear, tau, max_iter, tol)
 
 
 @pytest.mark.parametrize("tau", [0.1, 1.0, 10.0])
@@ -383,7 +377,7 @@ def test_proximal_tnh_meets_the_optimality_condition_and_matches_cvxpy(tau):
     F, P = X.shape[0], X.shape[1] // 3
     mask = random_visibility_mask(F, P, 0.3, random_state=21)
     noisy = W + 0.05 * np.random.default_rng(21).standard_normal(W.shape)
-    res = trace_norm_heuristic(noisy, R, mask, tau=tau, method="fista", tol=1e-14, max_iter=50_000)
+    res = fista(noisy, R, mask, tau=tau, tol=1e-14, max_iter=50_000)
     assert res.success and res.status == CONVERGED and res.method == "fista" and not res.exact_fit
     term = OrthographicReprojection(noisy, R, mask)
     assert res.fun == pytest.approx(penalised_objective(term, res.x, tau), rel=1e-12)
@@ -402,20 +396,10 @@ def test_proximal_tnh_meets_the_optimality_condition_and_matches_cvxpy(tau):
     assert res.fun == pytest.approx(penalised_objective(term, reference.x, tau), rel=1e-5)
 
 
-def test_proximal_tnh_warm_start_cap_and_errors():
+def test_proximal_tnh_warm_start_and_cap():
     X, W, R = synthetic_sequence(n_frames=8, n_points=6, rank=2, seed=22)
-
-    def fista(W_, R_, **options):
-        return trace_norm_heuristic(W_, R_, method="fista", **options)
-
     cold = fista(W, R, tau=1.0, tol=1e-12)
     warm = fista(W, R, tau=1.0, X0=cold.x, tol=1e-12)
     assert warm.nit < cold.nit and warm.fun <= cold.fun * (1 + 1e-12)
     capped = fista(W, R, tau=1.0, tol=1e-12, max_iter=2)
     assert capped.status == MAX_ITER and not capped.success and capped.nit == 2
-    with pytest.raises(ValueError, match="tau"):
-        fista(W, R, tau=0.0)
-    with pytest.raises(ValueError, match="X0"):
-        fista(W, R, tau=1.0, X0=np.zeros((3, 3)))
-    with pytest.raises(ValueError, match="W2d"):
-        fista(W[:, :-1], R, tau=1.0)

@@ -13,14 +13,7 @@ up to the global gauge: :func:`e3d` and :func:`camera_error`. Parameters from th
 
 from .factorization import initialize_cameras
 from .joint_kernel import kernel_energy
-from .layout import (
-    cameras_from_stack,
-    cameras_to_stack,
-    random_visibility_mask,
-    rows_to_stack,
-    stack_to_rows,
-    visibility_folds,
-)
+from .layout import random_visibility_mask, stack_to_rows, visibility_folds
 from .metrics import (
     camera_error,
     center_per_frame,
@@ -49,9 +42,6 @@ __all__ = [
     "tnh_energy",
     "kernel_energy",
     "stack_to_rows",
-    "rows_to_stack",
-    "cameras_from_stack",
-    "cameras_to_stack",
     "random_visibility_mask",
     "e3d",
     "e3d_per_frame",

@@ -174,11 +174,16 @@ class CameraShapeResult(SolverResult):
         Reprojection error (sum of squares over observed points) after each camera step.
     energy_history : array, shape (nit,)
         The joint energy after each outer iteration.
+    search : dict or None
+        After :func:`~nldr.nrsfm.camera_search.tnh_camera_search`: ``energies`` (the start's TNH
+        energy, then each accepted round's), ``trials`` (round, mode, frames re-seated, energy) of every
+        proposal continued, ``n_alternations`` (alternations run, each to convergence).
     """
 
     R: np.ndarray
     history: np.ndarray
     energy_history: np.ndarray
+    search: dict | None = None
 
 
 def tnh_with_camera_refinement(
@@ -254,7 +259,7 @@ def tnh_alternation(
             previous = now
         out = fista_tnh(W3, m3, R, X, nuclear, tau, 300, inner_tol, momentum=carried if momentum else None,
                         **thresholding)  # fmt: skip
-        X, nuclear, carried = out.x, out.nuclear_norm, out.momentum
+        X, nuclear, carried = out.x.reshape(F, 3, P), out.nuclear_norm, out.momentum
         q, R, _, frame_cost, _, _, _ = camera_lm(W3, vis, q, X, 50)
         history.append(float(frame_cost.sum()))
         energy.append(tau * nuclear + history[-1])

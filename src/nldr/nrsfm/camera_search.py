@@ -16,19 +16,17 @@ better optimiser of the same problem, not a different estimator.
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass
+from dataclasses import replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .._validation import check_count, check_positive
-from ..result import SolverResult, status_from
 from .camera_refinement import CameraShapeResult, tnh_with_camera_refinement
 from .reprojection import tnh_energy
 from .rotations import complete_rotations
 
-__all__ = ["PROPOSALS", "CameraSearchResult", "propose_cameras", "tnh_camera_search"]
+__all__ = ["PROPOSALS", "propose_cameras", "tnh_camera_search"]
 
 PROPOSALS = ("forward", "backward", "local")
 
@@ -82,37 +80,6 @@ def propose_cameras(R, mode: str, threshold_deg: float = 30.0) -> tuple[np.ndarr
     return out[:, :2].copy(), np.asarray(sorted(changed), dtype=int)
 
 
-@dataclass(kw_only=True, repr=False)
-class CameraSearchResult(SolverResult):
-    """Result of :func:`tnh_camera_search` (a :class:`~nldr.result.SolverResult`).
-
-    Attributes
-    ----------
-    x : array, shape (F, 3P)
-        Shapes of the alternation kept (the start's if no proposal helped).
-    fun : float
-        Its TNH energy.
-    R : array, shape (F, 2, 3)
-        Its cameras.
-    nit : int
-        Rounds.
-    best : CameraShapeResult
-        The alternation kept (``start`` itself if none was better).
-    energy_history : list of float
-        The start's energy, then each accepted round's.
-    trials : list of (round, mode, frames re-seated, energy)
-        Every proposal continued by an alternation.
-    n_alternations : int
-        Alternations run (each to convergence).
-    """
-
-    R: np.ndarray
-    best: CameraShapeResult
-    energy_history: list
-    trials: list
-    n_alternations: int
-
-
 def tnh_camera_search(
     W2d,
     mask,
@@ -124,7 +91,7 @@ def tnh_camera_search(
     threshold_deg: float = 30.0,
     rtol: float = 1e-6,
     **alternation,
-) -> CameraSearchResult:
+) -> CameraShapeResult:
     """Improve a converged TNH alternation ``start`` at weight ``tau`` by re-seating cameras.
 
     Each round: every proposal of :func:`propose_cameras` that re-seats at least one frame is
@@ -147,9 +114,10 @@ def tnh_camera_search(
 
     Returns
     -------
-    CameraSearchResult
+    CameraShapeResult
+        The alternation kept (a copy of ``start`` if none was better) with ``fun`` its TNH energy
+        (:func:`~nldr.nrsfm.tnh_energy`), ``message`` followed by the search's, ``search`` the record.
     """
-    t0 = time.perf_counter()
     tau = check_positive(tau, "tau")
     max_rounds = check_count(max_rounds, "max_rounds")
     rtol = check_positive(rtol, "rtol")
@@ -182,16 +150,6 @@ def tnh_camera_search(
         best_energy, best = found[0], found[1]
         history.append(best_energy)
         message = f"round {k}: {found[2]} proposal, energy {best_energy:.6g}"
-    return CameraSearchResult(
-        x=best.x,
-        fun=best_energy,
-        status=status_from(True),
-        message=message,
-        nit=k,
-        wall_time=time.perf_counter() - t0,
-        R=best.R,
-        best=best,
-        energy_history=history,
-        trials=trials,
-        n_alternations=runs,
-    )
+    record = {"energies": history, "trials": trials, "n_alternations": runs}
+    summary = f"{best.message}; camera search: {runs} alternations, {message}"
+    return replace(best, fun=best_energy, message=summary, search=record)

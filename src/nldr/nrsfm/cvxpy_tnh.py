@@ -21,7 +21,7 @@ try:
 except ImportError as exc:  # pragma: no cover - exercised by tests with cvxpy hidden
     raise ImportError(
         "TNH with method='cvxpy' needs cvxpy, an optional dependency of nldr: pip install nldr[cvxpy] "
-        "(or use method='admm' for the exact fit, method='fista' for tau > 0)"
+        "(or use method='admm' for the exact fit)"
     ) from exc
 
 from .._validation import check_positive

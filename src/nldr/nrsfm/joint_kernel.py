@@ -39,7 +39,7 @@ schedules and starts.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -202,12 +202,9 @@ class JointKernelResult(RegularizerResult):
     ----------
     R : array (F, 2, 3)
         Cameras.
-    reprojection : float
-        The reprojection error (sum of squares, or of Huber losses) over the observed points at the end.
     """
 
     R: np.ndarray
-    reprojection: float
 
 
 def solve_joint_kernel(
@@ -325,10 +322,8 @@ def solve_joint_kernel(
     with blas_threads_for(F):  # one BLAS thread on small problems (nldr._threads)
         res = penalty_method(np.concatenate([Z0.ravel(), Q.ravel()]), rhos, stage, stage_end, start=start)
     Z, Q = unpack(res.x)
-    reprojection = _loss(m3 * (W3 - Z[:, :2]), delta)
-    base = {f.name: getattr(res, f.name) for f in fields(res)}
-    base.update(x=(Q.transpose(0, 2, 1) @ Z).reshape(F, 3 * P), wall_time=time.perf_counter() - start)
-    return JointKernelResult(**base, R=Q[:, :2].copy(), reprojection=reprojection)
+    fields = {**vars(res), "x": (Q.transpose(0, 2, 1) @ Z).reshape(F, 3 * P), "R": Q[:, :2].copy()}
+    return JointKernelResult(**{**fields, "wall_time": time.perf_counter() - start})
 
 
 def _scaled(value_grad, D, u):

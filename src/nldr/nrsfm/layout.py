@@ -7,7 +7,7 @@ The CMU mocap files (Akhter et al. 2009) stack frames vertically:
 - cameras ``Rs`` (2F, 3): rows 2f, 2f+1 are the orthographic projection of frame f.
 
 The library treats each frame as one sample (a row), so the regulariser sees shapes as points in
-R^{3P}:
+R^{3P} (:func:`stack_to_rows`; cameras ``Rs.reshape(F, 2, 3)``):
 
 - shapes ``X`` (F, 3P): row f is ``S[3f:3f+3, :].ravel()`` (C order: all X, then all Y, then all Z);
 - image tracks ``W`` (F, 2P): row f is ``W[2f:2f+2, :].ravel()`` (all x, then all y);
@@ -26,9 +26,6 @@ from .._validation import as_float_matrix, check_count, check_positive
 
 __all__ = [
     "stack_to_rows",
-    "rows_to_stack",
-    "cameras_from_stack",
-    "cameras_to_stack",
     "random_visibility_mask",
     "visibility_folds",
 ]
@@ -50,51 +47,13 @@ def stack_to_rows(M, dim: int = 3) -> np.ndarray:
         Row f is ``M[dim*f:dim*f+dim, :].ravel()`` (coordinate-major: all x, then all y, ...).
     """
     M = as_float_matrix(M, "M", allow_nan=True)
-    dim = _check_dim(dim)
+    if dim not in (2, 3):
+        raise ValueError(f"dim must be 3 (shapes) or 2 (image tracks); got {dim!r}")
+    dim = int(dim)
     if M.shape[0] % dim:
         raise ValueError(f"M must have a multiple of dim={dim} rows (dim per frame); got shape {M.shape}")
     F, P = M.shape[0] // dim, M.shape[1]
     return M.reshape(F, dim * P).copy()
-
-
-def rows_to_stack(X, P: int, dim: int = 3) -> np.ndarray:
-    """Samples as rows (F, dim*P) -> stacked per-frame blocks (dim*F, P); inverse of :func:`stack_to_rows`.
-
-    Parameters
-    ----------
-    X : array, shape (F, dim*P)
-    P : int
-        Number of points.
-    dim : {3, 2}
-        Coordinates per point: 3 for shapes, 2 for image tracks.
-
-    Returns
-    -------
-    M : array, shape (dim*F, P)
-        Rows dim*f .. dim*f+dim-1 hold the coordinates of frame f.
-    """
-    X = as_float_matrix(X, "X", allow_nan=True)
-    dim = _check_dim(dim)
-    P = _check_n_points(P)
-    if X.shape[1] != dim * P:
-        raise ValueError(f"X must have dim*P = {dim}*{P} = {dim * P} columns; got shape {X.shape}")
-    return X.reshape(X.shape[0] * dim, P).copy()
-
-
-def cameras_from_stack(Rs) -> np.ndarray:
-    """Stacked cameras (2F, 3) -> array (F, 2, 3); frame f's camera is ``Rs[2f:2f+2]``."""
-    Rs = as_float_matrix(Rs, "Rs")
-    if Rs.shape[0] % 2 or Rs.shape[1] != 3:
-        raise ValueError(f"Rs must have shape (2F, 3); got {Rs.shape}")
-    return Rs.reshape(-1, 2, 3).copy()
-
-
-def cameras_to_stack(R) -> np.ndarray:
-    """Cameras (F, 2, 3) -> stacked (2F, 3); inverse of :func:`cameras_from_stack`."""
-    R = as_float_matrix(R, "R", ndim=3)
-    if R.shape[1:] != (2, 3):
-        raise ValueError(f"R must have shape (F, 2, 3); got {R.shape}")
-    return R.reshape(-1, 3).copy()
 
 
 def random_visibility_mask(
@@ -118,7 +77,7 @@ def random_visibility_mask(
     mask : bool array, shape (F, P)
         True where the point is observed.
     """
-    F, P = _check_n_points(n_frames, "n_frames"), _check_n_points(n_points, "n_points")
+    F, P = check_count(n_frames, "n_frames"), check_count(n_points, "n_points")
     frac = check_positive(missing_fraction, "missing_fraction", allow_zero=True)
     if frac >= 1.0:
         raise ValueError(f"missing_fraction must be in [0, 1); got {missing_fraction!r}")
@@ -201,13 +160,3 @@ def visibility_folds(
                     hidden[flat // P, flat % P] = False
         folds.append(hidden)
     return folds
-
-
-def _check_dim(dim) -> int:
-    if dim not in (2, 3):
-        raise ValueError(f"dim must be 3 (shapes) or 2 (image tracks); got {dim!r}")
-    return int(dim)
-
-
-def _check_n_points(P, name: str = "P") -> int:
-    return check_count(P, name)

@@ -43,7 +43,7 @@ from .factorization import initialize_cameras
 from .joint_kernel import joint_kernel_multistart
 from .reprojection import OrthographicReprojection, check_cameras, check_tracks, reprojection_error
 from .rotations import CameraFrameVariables
-from .tnh import TNHResult, solve_fista
+from .tnh import TNHResult
 
 __all__ = [
     "WIDTH_RULES",
@@ -62,7 +62,7 @@ LOSSES = ("squared", "huber")
 #: The kernel method's trace-norm weight (the paper's, all NRSfM tables).
 KERNEL_TAU = 1e-4
 #: The solvers of :func:`trace_norm_heuristic` (``method`` is case-insensitive).
-METHODS = ("admm", "fista", "cvxpy")
+METHODS = ("admm", "cvxpy")
 _CVXPY_OPTIONS = ("solver", "solver_options", "warm_start", "verbose")
 
 
@@ -87,18 +87,16 @@ def trace_norm_heuristic(
     tau : float >= 0 or None, default None
         Weight of ||X||_* against the sum of squared reprojection errors (the data's squared unit per
         unit of nuclear norm). None or 0 solves the exact-fit form.
-    method : {"admm", "fista", "cvxpy"}, default "admm"
+    method : {"admm", "cvxpy"}, default "admm"
         Case-insensitive. ``"admm"``: the exact fit only (:func:`~nldr.nrsfm.admm.solve_admm`, cost per
-        iteration linear in F, a certified duality gap); ``"fista"``: the penalised form only
-        (:func:`~nldr.nrsfm.tnh.solve_fista`); ``"cvxpy"``: either, as a semidefinite program
-        (:class:`~nldr.nrsfm.cvxpy_tnh.CvxpyTNH`, an optional dependency), the reference for small
-        problems; for a tau sweep use :class:`~nldr.nrsfm.cvxpy_tnh.CvxpyTNH`, which compiles once.
+        iteration linear in F, a certified duality gap); ``"cvxpy"``: either form, as a semidefinite
+        program (:class:`~nldr.nrsfm.cvxpy_tnh.CvxpyTNH`, an optional dependency), the reference for
+        small problems; for a tau sweep use :class:`~nldr.nrsfm.cvxpy_tnh.CvxpyTNH`, which compiles once.
     **options
         Options of the method's solver: ``"admm"``: ``tol`` (default 1e-6), ``max_iter``, ``beta``,
         ``X0``, ``Y0``, ``relaxation``, ``adaptive``, ``verbose`` (warm start from a result ``res``:
-        ``X0=res.x, Y0=res.dual, beta=res.options["final_beta"]``); ``"fista"``: ``X0``, ``max_iter``,
-        ``tol``; ``"cvxpy"``: ``solver`` (default ``"SCS"``), ``solver_options``, ``warm_start``,
-        ``verbose``.
+        ``X0=res.x, Y0=res.dual, beta=res.options["final_beta"]``); ``"cvxpy"``: ``solver`` (default
+        ``"SCS"``), ``solver_options``, ``warm_start``, ``verbose``.
 
     Returns
     -------
@@ -111,7 +109,7 @@ def trace_norm_heuristic(
     ------
     ValueError
         For malformed inputs, an unknown method or option, a negative tau, ``method="admm"`` with
-        tau > 0, ``method="fista"`` without tau > 0, or an infeasible exact fit (ADMM).
+        tau > 0, or an infeasible exact fit (ADMM).
     ImportError
         ``method="cvxpy"`` without cvxpy installed (``pip install nldr[cvxpy]``).
     TNHSolveError
@@ -124,15 +122,10 @@ def trace_norm_heuristic(
     if name == "admm" and tau_value != 0.0:
         raise ValueError(
             f"method 'admm' solves the exact-fit form only (tau None or 0); got tau={tau_value:g}. "
-            f"Use method='fista' (or 'cvxpy') for tau > 0"
+            f"Use method='cvxpy' for tau > 0"
         )
-    if name == "fista" and tau_value == 0.0:
-        raise ValueError(
-            "method 'fista' solves the penalised form, tau > 0; use method='admm' for the exact fit"
-        )
-    backend = {"admm": solve_admm, "fista": solve_fista}.get(name)
-    allowed = _CVXPY_OPTIONS if backend is None else tuple(
-        n for n, p in inspect.signature(backend).parameters.items() if p.kind is p.KEYWORD_ONLY and n != "tau"
+    allowed = _CVXPY_OPTIONS if name == "cvxpy" else tuple(
+        n for n, p in inspect.signature(solve_admm).parameters.items() if p.kind is p.KEYWORD_ONLY
     )  # fmt: skip
     unknown = sorted(set(options) - set(allowed))
     if unknown:
@@ -141,8 +134,7 @@ def trace_norm_heuristic(
         from .cvxpy_tnh import CvxpyTNH  # cvxpy is optional: imported only here
 
         return CvxpyTNH(W2d, R, mask).solve(tau, **options)
-    term = OrthographicReprojection(W2d, R, mask)  # validates the tracks, cameras and mask
-    return solve_admm(term, **options) if name == "admm" else solve_fista(term, tau=tau_value, **options)
+    return solve_admm(OrthographicReprojection(W2d, R, mask), **options)  # the term validates the inputs
 
 
 @dataclass(kw_only=True, repr=False)
@@ -289,17 +281,11 @@ def reconstruct(
             raise ValueError(f"unknown options for TNH with estimated cameras: {unknown}")
         R0 = initialize_cameras(W, vis) if R0 is None else check_cameras(R0, F, name="initial_cameras")
         res = tnh_with_camera_refinement(W, vis, R0, tau, **options)
-        message = res.message
         if search:
             alternation = {k: v for k, v in options.items() if k in ("max_outer", "tol")}
-            found = tnh_camera_search(
-                W, vis, res, tau, **dict(search if isinstance(search, Mapping) else {}), **alternation
-            )
-            res = found.best
-            message = f"{res.message}; camera search: {found.n_alternations} alternations, {found.message}"
-        out = _result(res, W, vis, res.R, tau=tau, gamma=np.nan, wall=time.perf_counter() - begin, **common)
-        out.message = message
-        return out
+            search = dict(search if isinstance(search, Mapping) else {})
+            res = tnh_camera_search(W, vis, res, tau, **search, **alternation)
+        return _result(res, W, vis, res.R, tau=tau, gamma=np.nan, wall=time.perf_counter() - begin, **common)
 
     tau = KERNEL_TAU if tau is None else check_positive(tau, "tau")
     if start is None:

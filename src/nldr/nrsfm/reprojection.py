@@ -39,8 +39,7 @@ def check_cameras(R, n_frames: int | None = None, name: str = "R") -> np.ndarray
     R = as_float_matrix(R, name, ndim=3)
     if R.shape[1:] != (2, 3):
         raise ValueError(
-            f"{name} must have shape (F, 2, 3); got {R.shape} (stacked (2F, 3) cameras: use "
-            f"nldr.nrsfm.layout.cameras_from_stack)"
+            f"{name} must have shape (F, 2, 3); got {R.shape} (stacked (2F, 3) cameras: reshape(F, 2, 3))"
         )
     if n_frames is not None and R.shape[0] != n_frames:
         raise ValueError(f"{name} must hold one camera per frame, {n_frames}; got {R.shape[0]}")

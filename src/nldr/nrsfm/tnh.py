@@ -8,9 +8,9 @@ TNH (the paper's eq. 12, known cameras) for shapes as rows X (F, 3P), tracks W (
     min_X  ||X||_*   subject to   R_f s_f(x_j) = w_f(x_j)  for every observed (f, j)
 
 The entry point is :func:`~nldr.nrsfm.trace_norm_heuristic`; its backends are the ADMM of
-:mod:`nldr.nrsfm.admm` (the exact fit, and the robust TNH), :func:`solve_fista` here (penalised) and
-:mod:`nldr.nrsfm.cvxpy_tnh` (the conic reference). :func:`fista_tnh` is also the shape step of Table 4's
-camera/shape alternation (:mod:`nldr.nrsfm.camera_refinement`).
+:mod:`nldr.nrsfm.admm` (the exact fit, and the robust TNH) and :mod:`nldr.nrsfm.cvxpy_tnh` (the conic
+reference, either form). :func:`fista_tnh` here, the penalised form by FISTA, is the shape step of
+Table 4's camera/shape alternation (:mod:`nldr.nrsfm.camera_refinement`).
 
 Singular value thresholding, ``prox_{t ||.||_*}(Y) = U (S - t)_+ V^T``, comes two ways:
 :func:`soft_threshold_singular_values` by a thin SVD (the accurate one), and
@@ -37,20 +37,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._spectral import shrink_singular_values
-from .._validation import check_count, check_positive
 from ..result import SolverResult, status_from
-from .reprojection import OrthographicReprojection, check_shapes, masked_residual, visibility_weights
+from .reprojection import OrthographicReprojection, masked_residual
 
 __all__ = [
     "GRAM_SAFETY",
     "TNHResult",
     "TNHSolveError",
-    "FistaResult",
     "fit_summary",
     "soft_threshold_singular_values",
     "soft_threshold_singular_values_gram",
     "fista_tnh",
-    "solve_fista",
 ]
 
 _EPS = float(np.finfo(np.float64).eps)
@@ -84,7 +81,7 @@ class TNHResult(SolverResult):
     wall_time : float
         Seconds of wall-clock time (cvxpy: of ``problem.solve``, compilation on a first solve included).
     method : str
-        ``"admm"``, ``"admm_l1"`` (robust TNH), ``"fista"`` or ``"cvxpy"``.
+        ``"admm"``, ``"admm_l1"`` (robust TNH), ``"cvxpy"`` or ``"fista"`` (:func:`fista_tnh`).
     solver : str
         ``"ADMM"``, ``"FISTA"`` or the name of the conic solver (``"SCS"``, ``"CLARABEL"``, ...).
     tau : float
@@ -109,6 +106,9 @@ class TNHResult(SolverResult):
         ADMM only: ``fun`` minus a certified lower bound on the optimum (unit of the tracks).
     solver_time : float or None
         cvxpy only: seconds inside the conic solver, as it reports them.
+    momentum : (array (F, 3, P), float, float) or None
+        :func:`fista_tnh` only: ``(X_before, beta, t)``, the state to continue from (pass it back as
+        ``momentum`` with ``X=x.reshape(F, 3, P)``).
     """
 
     method: str
@@ -122,6 +122,7 @@ class TNHResult(SolverResult):
     dual: np.ndarray | None = None
     duality_gap: float | None = None
     solver_time: float | None = None
+    momentum: tuple | None = None
 
 
 def fit_summary(term: OrthographicReprojection, X: np.ndarray) -> dict[str, float]:
@@ -177,31 +178,6 @@ def _lipschitz_step(R: np.ndarray) -> float:
     return 1.0 / (2.0 * max(float(top.max()), 1e-12))
 
 
-@dataclass(kw_only=True, repr=False)
-class FistaResult(SolverResult):
-    """Result of :func:`fista_tnh` (a :class:`~nldr.result.SolverResult`).
-
-    Attributes
-    ----------
-    x : array, shape (F, 3, P)
-        The last iterate, in the batched layout of the input (``x.reshape(F, 3 * P)``: shapes as rows).
-    fun : float
-        tau ||x||_* + reprojection error.
-    status, message, nit, wall_time
-        As in :class:`~nldr.result.SolverResult`; CONVERGED when the relative objective decrease of an
-        iteration fell below ``tol``, MAX_ITER otherwise.
-    nuclear_norm, reprojection_error : float
-        The two parts of the objective.
-    momentum : (array (F, 3, P), float, float)
-        ``(X_before, beta, t)``: the state to continue from (pass it back as ``momentum`` with
-        ``X=x``).
-    """
-
-    nuclear_norm: float
-    reprojection_error: float
-    momentum: tuple[np.ndarray, float, float]
-
-
 def fista_tnh(
     W3: np.ndarray,
     m3: np.ndarray | None,
@@ -213,7 +189,7 @@ def fista_tnh(
     tol: float,
     svt: Callable[[np.ndarray, float], tuple[np.ndarray, float]] = soft_threshold_singular_values_gram,
     momentum: tuple[np.ndarray, float, float] | None = None,
-) -> FistaResult:
+) -> TNHResult:
     """FISTA with restarts for penalised TNH on validated batched arrays (no checks), warm-startable.
 
     Minimises ``tau ||X||_* + sum_f ||m_f o (W_f - R_f X_f)||^2`` from ``X``; stops when the relative
@@ -247,7 +223,10 @@ def fista_tnh(
 
     Returns
     -------
-    FistaResult
+    TNHResult
+        ``x`` the last iterate (F, 3P); ``method="fista"``, ``solver="FISTA"``; ``nuclear_norm`` from
+        the last thresholding; ``status`` CONVERGED when the relative decrease of an iteration fell
+        below ``tol``, MAX_ITER otherwise; ``momentum`` the state to continue from.
     """
     start = time.perf_counter()
     F, _, P = X.shape
@@ -293,62 +272,10 @@ def fista_tnh(
             )
             break
     reprojection_error = float(np.vdot(E_x, E_x))
-    return FistaResult(
-        x=X,
-        fun=tau * x_nuclear + reprojection_error,
-        status=status_from(converged),
-        message=message,
-        nit=it,
-        wall_time=time.perf_counter() - start,
-        nuclear_norm=x_nuclear,
-        reprojection_error=reprojection_error,
-        momentum=carried,
-    )
-
-
-def solve_fista(
-    term: OrthographicReprojection, *, tau: float, X0=None, max_iter: int = 5000, tol: float = 1e-10
-) -> TNHResult:
-    """Penalised TNH ``min tau ||X||_* + sum Z ||w - R s||^2`` over the shapes X by FISTA with restarts:
-    the backend of ``trace_norm_heuristic(W2d, R, mask, tau=tau, method="fista", ...)``.
-
-    Parameters
-    ----------
-    term : OrthographicReprojection
-        Tracks, cameras and visibility (validated).
-    tau : float > 0
-        Trace-norm weight, in the unit of the tracks squared.
-    X0 : array, shape (F, 3P), optional
-        Warm start; default zeros.
-    max_iter : int, default 5000
-    tol : float > 0, default 1e-10
-        Stop when the relative decrease of the objective in one iteration is below tol.
-
-    Returns
-    -------
-    TNHResult
-        ``method="fista"``, ``solver="FISTA"``; ``nuclear_norm`` from the last thresholding.
-    """
-    start = time.perf_counter()
-    tau, tol, max_iter = (
-        check_positive(tau, "tau"),
-        check_positive(tol, "tol"),
-        check_count(max_iter, "max_iter"),
-    )
-    F, P = term.n_frames, term.n_points
-    X, x_nuclear = np.zeros((F, 3, P)), 0.0
-    if X0 is not None:
-        X = check_shapes(X0, F, P, name="X0")
-        x_nuclear = float(np.linalg.svd(X, compute_uv=False).sum())
-        X = X.reshape(F, 3, P)
-    out = fista_tnh(
-        term.W.reshape(F, 2, P), visibility_weights(term.mask), term.R, X, x_nuclear, tau, max_iter, tol
-    )
-    r = term.residuals(out.x.reshape(F, 3 * P))
     return TNHResult(
-        x=out.x.reshape(F, 3 * P), fun=out.fun, status=out.status, message=out.message, nit=out.nit,
-        wall_time=time.perf_counter() - start, method="fista", solver="FISTA", tau=tau, exact_fit=False,
-        nuclear_norm=out.nuclear_norm, reprojection_error=out.reprojection_error,
-        max_abs_residual=float(np.max(np.abs(r))) if r.size else 0.0,
-        options={"max_iter": max_iter, "tol": tol},
+        x=X.reshape(F, 3 * P), fun=tau * x_nuclear + reprojection_error, status=status_from(converged),
+        message=message, nit=it, wall_time=time.perf_counter() - start, method="fista", solver="FISTA",
+        tau=tau, exact_fit=False, nuclear_norm=x_nuclear, reprojection_error=reprojection_error,
+        max_abs_residual=float(np.max(np.abs(E_x))) if E_x.size else 0.0,
+        options={"max_iter": max_iter, "tol": tol}, momentum=carried,
     )  # fmt: skip
