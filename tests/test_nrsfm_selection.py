@@ -33,7 +33,8 @@ def one_blas_thread():
 
 
 def holdout_reprojection_error(W, hidden, R, X):
-    return reprojection_error(W, hidden, R, X, mean=True)
+    """Mean over the hidden points of ||w - R s||^2: the selection's score, from the cameras and shapes."""
+    return reprojection_error(W, hidden, R, X) / hidden.sum()
 
 
 def synthetic_sequence(F=24, P=10, missing=0.3, noise=0.0, seed=0):

@@ -134,7 +134,7 @@ class Huber:
     ----------
     term : DataTerm
         The least-squares data term whose residuals are made robust; kept as ``self.term`` (its own
-        methods, e.g. ``set_cameras`` of the NRSfM term, stay reachable there).
+        methods stay reachable there).
     delta : float > 0
         Threshold between quadratic and linear, in the units of the residuals (e.g. about 1.345 times
         a robust estimate of the residuals' standard deviation, Huber's 95 % efficiency rule).

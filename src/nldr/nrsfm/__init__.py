@@ -26,7 +26,7 @@ from .metrics import (
 from .reconstruct import Reconstruction, reconstruct, trace_norm_heuristic
 from .reprojection import OrthographicReprojection, reprojection_error, tnh_energy
 from .rotations import CameraFrameVariables
-from .selection import KernelSelection, TNHTauSelection, select_kernel, select_tnh_tau
+from .selection import NRSfMSelection, select_kernel, select_tnh_tau
 from .tnh import TNHResult, TNHSolveError
 
 __all__ = [
@@ -52,7 +52,6 @@ __all__ = [
     "camera_error",
     "visibility_folds",
     "select_tnh_tau",
-    "TNHTauSelection",
+    "NRSfMSelection",
     "select_kernel",
-    "KernelSelection",
 ]

@@ -60,7 +60,7 @@ from ..result import CONVERGED, MAX_ITER
 from .reprojection import OrthographicReprojection, check_shapes
 from .tnh import TNHResult, fit_summary, soft_threshold_singular_values_gram
 
-__all__ = ["RobustTNHResult", "solve_admm", "robust_trace_norm_heuristic", "robust_tnh_objective"]
+__all__ = ["solve_admm", "robust_trace_norm_heuristic"]
 
 _RCOND = 1e-10  # relative cut-off of camera singular values in the pseudo-inverse
 _ADAPT_EVERY = 10  # iterations between residual-balancing checks
@@ -68,28 +68,6 @@ _ADAPT_MU = 2.0  # balance when one relative residual exceeds mu times the other
 _ADAPT_FACTOR = 2.0
 _ADAPT_MAX_CHANGES = 50
 _FEASIBILITY_RTOL = 1e-9  # exact-fit residual tolerance (relative to the track scale) of a singular camera
-
-
-@dataclass(kw_only=True, repr=False)
-class RobustTNHResult(TNHResult):
-    """Result of :func:`robust_trace_norm_heuristic`, a :class:`~nldr.nrsfm.TNHResult`.
-
-    ``x`` (F, 3P) the shapes in the unit of the tracks; ``fun`` the objective tau ||X||_* + the l1
-    reprojection error at ``x`` (unit of the tracks); ``method="admm_l1"``, ``solver="ADMM"``,
-    ``exact_fit=False``; ``dual`` the dual-feasible multiplier mu of the residuals, shape (F, 2P) with
-    zeros at unobserved entries (dimensionless, |mu| <= 1, ||A^T mu||_2 <= tau); ``duality_gap``
-    ``fun`` minus the certified lower bound (unit of the tracks).
-
-    Attributes
-    ----------
-    l1_error : float
-        Sum of absolute reprojection residuals over the observed coordinates (unit of the tracks).
-    lower_bound : float
-        Certified lower bound on the optimal objective, <mu, b> (unit of the tracks).
-    """
-
-    l1_error: float
-    lower_bound: float
 
 
 def solve_admm(
@@ -166,16 +144,6 @@ def solve_admm(
     )  # fmt: skip
 
 
-def robust_tnh_objective(term: OrthographicReprojection, X, tau: float) -> float:
-    """tau ||X||_* + sum of absolute reprojection residuals of X (F, 3P) under ``term`` (unit of the
-    tracks): the objective :func:`robust_trace_norm_heuristic` minimises."""
-    X = np.asarray(X, dtype=np.float64)
-    if X.shape != term.shape:
-        raise ValueError(f"X must have shape (F, 3P) = {term.shape}; got {X.shape}")
-    tau = check_positive(tau, "tau")
-    return tau * float(np.linalg.svd(X, compute_uv=False).sum()) + float(np.abs(term.residuals(X)).sum())
-
-
 def robust_trace_norm_heuristic(
     W2d,
     R,
@@ -189,7 +157,7 @@ def robust_trace_norm_heuristic(
     X0=None,
     adaptive: bool = True,
     verbose: bool = False,
-) -> RobustTNHResult:
+) -> TNHResult:
     """Robust TNH with known cameras: ``min tau ||X||_* + l1 reprojection error`` by ADMM.
 
     The l1 term leaves a coordinate unexplained at a cost proportional to its error, so a few displaced
@@ -216,7 +184,12 @@ def robust_trace_norm_heuristic(
 
     Returns
     -------
-    RobustTNHResult
+    TNHResult
+        ``x`` (F, 3P) the shapes in the unit of the tracks; ``fun`` the objective tau ||X||_* + the l1
+        reprojection error at ``x`` (unit of the tracks); ``method="admm_l1"``, ``solver="ADMM"``,
+        ``exact_fit=False``; ``dual`` the dual-feasible multiplier mu of the residuals, shape (F, 2P)
+        with zeros at unobserved entries (dimensionless, |mu| <= 1, ||A^T mu||_2 <= tau);
+        ``duality_gap`` ``fun`` minus the certified lower bound <mu, b> (unit of the tracks).
 
     Raises
     ------
@@ -242,11 +215,11 @@ def robust_trace_norm_heuristic(
     mu = tau * problem.best_dual  # (F, 2, P), zero where unobserved
     lower = float(np.vdot(mu, term.W.reshape(mu.shape)))
     message = _finish(run, "robust TNH", verbose, f"objective {fun:.6g}, lower bound {lower:.6g}")
-    return RobustTNHResult(
+    return TNHResult(
         x=X, fun=fun, status=run.status, message=message, nit=run.nit, wall_time=time.perf_counter() - start,
         method="admm_l1", solver="ADMM", tau=tau, exact_fit=False, **fit,
         options={**options, "final_beta": run.beta}, dual=mu.reshape(term.n_frames, -1),
-        duality_gap=float(fun - lower), l1_error=l1, lower_bound=lower,
+        duality_gap=float(fun - lower),
     )  # fmt: skip
 
 

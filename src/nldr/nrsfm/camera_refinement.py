@@ -44,18 +44,6 @@ __all__ = [
 ]
 
 
-def _frame_costs(Wf3, mask, R, Sf):
-    E = Wf3 - R @ Sf
-    E *= mask[:, None, :]
-    return np.einsum("fcp,fcp->f", E, E), E
-
-
-def _cameras(q):
-    """Cameras (F, 2, 3) of quaternions (F, 4) and their Jacobian (F, 2, 3, 4): the first two rows of
-    :func:`~nldr.nrsfm.rotations.quaternion_rotation`."""
-    return quaternion_rotation(q, jacobian=True, rows=2)
-
-
 def lm_normal_equations(J, C2, SE):
     """J^T J (n, 4, 4) and -J^T r (n, 4) of the per-frame camera LM from 3x3 and 3x2 summaries.
 
@@ -99,12 +87,14 @@ def camera_lm(Wf3, mask, q, Sf, max_iter=100, ftol=1e-12, xtol=1e-12):
     """
     F = q.shape[0]
     q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    R, J = _cameras(q)
+    R, J = quaternion_rotation(q, jacobian=True, rows=2)  # the cameras and their Jacobian
     m3 = visibility_weights(mask)
     C = (Sf if m3 is None else Sf * m3) @ Sf.transpose(0, 2, 1)  # S diag(mask) S^T, (F, 3, 3)
     C2 = np.zeros((F, 6, 6))
     C2[:, :3, :3] = C2[:, 3:, 3:] = C
-    cost, E = _frame_costs(Wf3, mask, R, Sf)
+    E = Wf3 - R @ Sf
+    E *= mask[:, None, :]
+    cost = np.einsum("fcp,fcp->f", E, E)
     SE = Sf @ E.transpose(0, 2, 1)  # S E^T, (F, 3, 2)
     scale = np.einsum("fcp,fcp->f", Wf3, Wf3) + 1e-300
     lam = np.full(F, 1e-3)
@@ -129,7 +119,7 @@ def camera_lm(Wf3, mask, q, Sf, max_iter=100, ftol=1e-12, xtol=1e-12):
         step_norm = np.sqrt(np.einsum("fi,fi->f", step, step))
         q_new = qi + step
         q_new /= np.sqrt(np.einsum("fi,fi->f", q_new, q_new))[:, None]
-        R_new, J_new = _cameras(q_new)
+        R_new, J_new = quaternion_rotation(q_new, jacobian=True, rows=2)
         E_new = masked_residual(Wf3[rows], None if m3 is None else m3[rows], R_new, S_i)
         cost_new = np.einsum("fcp,fcp->f", E_new, E_new)
         better = cost_new < cost_i

@@ -153,44 +153,34 @@ def rigid_factorization(W2d, mask=None, *, max_iter: int = 500, tol: float = 1e-
     U, sv, Vt = np.linalg.svd(stacked * (mask.size / mask.sum()), full_matrices=False)
     root = np.sqrt(sv[:3])
     S = root[:, None] * Vt[:3]
-    if mask.all():
+    if mask.all():  # the truncated SVD is the global optimum
         M = (U[:, :3] * root).reshape(F, 2, 3)
         r = (Wf3 - np.einsum("fck,kp->fcp", M, S)).ravel()
-        return RigidFactorization(
-            x=S,
-            fun=float(r @ r),
-            status=CONVERGED,
-            message="truncated SVD (full data)",
-            nit=0,
-            wall_time=time.perf_counter() - start,
-            M=M,
-            rms=float(np.sqrt(r @ r / n_obs)),
+        status, message, nit = CONVERGED, "truncated SVD (full data)", 0
+    else:
+        if n_obs < 3 * P:
+            raise ValueError(
+                f"mask leaves {n_obs} observed coordinates, fewer than the 3P = {3 * P} unknowns"
+            )
+
+        def fun(s):
+            return _varpro_residuals_jacobian(s, Wf3, mask, P, False)[0]
+
+        def jac(s):
+            return _varpro_residuals_jacobian(s, Wf3, mask, P, True)[1]
+
+        sol = least_squares(
+            fun, S.ravel(), jac=jac, method=_LSQ_METHOD, ftol=tol, xtol=tol, gtol=tol, max_nfev=max_iter
         )
-    if n_obs < 3 * P:
-        raise ValueError(f"mask leaves {n_obs} observed coordinates, fewer than the 3P = {3 * P} unknowns")
-
-    def fun(s):
-        return _varpro_residuals_jacobian(s, Wf3, mask, P, False)[0]
-
-    def jac(s):
-        return _varpro_residuals_jacobian(s, Wf3, mask, P, True)[1]
-
-    sol = least_squares(
-        fun, S.ravel(), jac=jac, method=_LSQ_METHOD, ftol=tol, xtol=tol, gtol=tol, max_nfev=max_iter
-    )
-    S = sol.x.reshape(3, P)
-    M = _fit_affine_cameras(Wf3, S, mask)
-    r = fun(sol.x)
+        S = sol.x.reshape(3, P)
+        M = _fit_affine_cameras(Wf3, S, mask)
+        r = fun(sol.x)
+        status, nit = status_from(sol.status > 0), int(sol.nfev)
+        message = f"variable projection: {sol.message}"
     return RigidFactorization(
-        x=S,
-        fun=float(r @ r),
-        status=status_from(sol.status > 0),
-        message=f"variable projection: {sol.message}",
-        nit=int(sol.nfev),
-        wall_time=time.perf_counter() - start,
-        M=M,
-        rms=float(np.sqrt(r @ r / n_obs)),
-    )
+        x=S, fun=float(r @ r), status=status, message=message, nit=nit, wall_time=time.perf_counter() - start,
+        M=M, rms=float(np.sqrt(r @ r / n_obs)),
+    )  # fmt: skip
 
 
 def _metric_rows(a, b):

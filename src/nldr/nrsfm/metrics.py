@@ -61,10 +61,6 @@ def _as_shapes(X, name: str, P: int) -> np.ndarray:
     return X
 
 
-def _check_P(P) -> int:
-    return check_count(P, "P (number of points)")
-
-
 def center_per_frame(X, P: int) -> np.ndarray:
     """Subtract, in every frame, the centroid of its P points.
 
@@ -79,7 +75,7 @@ def center_per_frame(X, P: int) -> np.ndarray:
     Xc : array, shape (F, 3P)
         Same unit; every frame has zero mean in each coordinate.
     """
-    P = _check_P(P)
+    P = check_count(P, "P (number of points)")
     X = _as_shapes(X, "X", P)
     blocks = X.reshape(X.shape[0], 3, P)
     return (blocks - blocks.mean(axis=2, keepdims=True)).reshape(X.shape)
@@ -103,7 +99,7 @@ def ground_truth_sigma(X_gt, P: int, *, pooled: bool = False) -> float:
     sigma : float
         In the length unit of ``X_gt``.
     """
-    P = _check_P(P)
+    P = check_count(P, "P (number of points)")
     blocks = center_per_frame(X_gt, P).reshape(-1, 3, P)
     if pooled:
         return float(np.mean(np.sqrt(np.mean(blocks**2, axis=(0, 2)))))
@@ -126,7 +122,7 @@ def procrustes_rotation(X_est, X_gt, P: int, *, allow_reflection: bool = True) -
     -------
     Q : array, shape (3, 3)
     """
-    P = _check_P(P)
+    P = check_count(P, "P (number of points)")
     A = _as_shapes(X_gt, "X_gt", P).reshape(-1, 3, P)
     B = _as_shapes(X_est, "X_est", P).reshape(-1, 3, P)
     if A.shape != B.shape:
@@ -149,7 +145,7 @@ def e3d_per_frame(X_est, X_gt, P: int, *, align: bool = False) -> np.ndarray:
     See :func:`e3d` for the definition and the parameters; returns an array of shape (F,)
     (dimensionless), whose mean is :func:`e3d`.
     """
-    P = _check_P(P)
+    P = check_count(P, "P (number of points)")
     X_est = _as_shapes(X_est, "X_est", P)
     X_gt = _as_shapes(X_gt, "X_gt", P)
     if X_est.shape != X_gt.shape:

@@ -5,11 +5,10 @@ rows W (F, 2P), cameras R (F, 2, 3) and the visibility mask Z (F, P); see :mod:`
 and the data-term protocol in :mod:`nldr.data_terms`.
 
 Also the pieces the other NRSfM modules share: the input checks (:func:`check_cameras`,
-:func:`check_visibility_mask`, :func:`check_tracks`, :func:`check_shapes`), the batched per-frame
-residual (:func:`visibility_weights`, :func:`masked_residual`) of the first-order TNH, the camera LM
-and the camera/shape alternation, and the energies with cameras as arguments:
-:func:`reprojection_error` (total, or mean over a set of points: the hold-out score) and
-:func:`tnh_energy`. The kernel method's energy is :func:`nldr.nrsfm.joint_kernel.kernel_energy`.
+:func:`check_tracks`, :func:`check_shapes`), the batched per-frame residual (:func:`visibility_weights`,
+:func:`masked_residual`) of the first-order TNH, the camera LM and the camera/shape alternation, and the
+energies with cameras as arguments: :func:`reprojection_error` and :func:`tnh_energy`. The kernel
+method's energy is :func:`nldr.nrsfm.joint_kernel.kernel_energy`.
 """
 
 from __future__ import annotations
@@ -24,7 +23,6 @@ from .._validation import as_float_matrix, check_magnitude, check_positive
 __all__ = [
     "OrthographicReprojection",
     "check_cameras",
-    "check_visibility_mask",
     "check_tracks",
     "check_shapes",
     "visibility_weights",
@@ -46,26 +44,12 @@ def check_cameras(R, n_frames: int | None = None, name: str = "R") -> np.ndarray
     return R
 
 
-def check_visibility_mask(mask, shape: tuple[int, int], name: str = "mask") -> np.ndarray:
-    """Validate a visibility mask of shape (F, P): bool, or 0/1 converted to bool; None = all observed."""
-    if mask is None:
-        return np.ones(shape, dtype=bool)
-    mask = np.asarray(mask)
-    if mask.dtype != bool:
-        if not (np.issubdtype(mask.dtype, np.number) and np.isin(mask, (0, 1)).all()):
-            raise ValueError(f"{name} must be boolean (or 0/1): True where point j is observed in frame f")
-        mask = mask.astype(bool)
-    if mask.shape != tuple(shape):
-        raise ValueError(f"{name} must have shape (F, P) = {tuple(shape)}; got {mask.shape}")
-    return mask
-
-
 class OrthographicReprojection:
     """f(X) = sum_{f,j} mask_fj ||w_f(x_j) - R_f s_f(x_j)||^2, the NRSfM data term with known cameras.
 
     Residuals are ordered like the observed entries of ``W2d`` in C order (frame, image coordinate,
-    point). They are linear in X, so the Jacobian is a constant sparse matrix built once (and again
-    by :meth:`set_cameras`); it has 3 non-zeros per residual.
+    point). They are linear in X, so the Jacobian is a constant sparse matrix built once; it has 3
+    non-zeros per residual.
 
     Parameters
     ----------
@@ -111,11 +95,7 @@ class OrthographicReprojection:
         self._mask2 = mask2
         self._observed = np.flatnonzero(mask2.ravel())
         self.n_residuals = int(self._observed.size)
-        self.set_cameras(R)
-
-    def set_cameras(self, R) -> None:
-        """Replace the cameras (F, 2, 3) and rebuild the Jacobian (for camera/shape alternation)."""
-        self.R = check_cameras(R, self.n_frames)
+        self.R = check_cameras(R, F)
         self._J = self._build_jacobian()
 
     def _build_jacobian(self) -> sp.csr_matrix:
@@ -186,7 +166,13 @@ def check_tracks(W2d, mask, *, min_points: int = 3) -> tuple[np.ndarray, np.ndar
     if W2d.shape[1] % 2:
         raise ValueError(f"W2d must have shape (F, 2P) (image tracks as rows); got {W2d.shape}")
     F, P = W2d.shape[0], W2d.shape[1] // 2
-    mask = check_visibility_mask(mask, (F, P))
+    mask = np.ones((F, P), dtype=bool) if mask is None else np.asarray(mask)
+    if mask.dtype != bool:
+        if not (np.issubdtype(mask.dtype, np.number) and np.isin(mask, (0, 1)).all()):
+            raise ValueError("mask must be boolean (or 0/1): True where point j is observed in frame f")
+        mask = mask.astype(bool)
+    if mask.shape != (F, P):
+        raise ValueError(f"mask must have shape (F, P) = {(F, P)}; got {mask.shape}")
     mask2 = np.concatenate([mask, mask], axis=1)
     if not np.all(np.isfinite(W2d[mask2])):
         raise ValueError("W2d has NaN or infinite values at observed entries (where mask is True)")
@@ -231,12 +217,9 @@ def masked_residual(W3: np.ndarray, m3: np.ndarray | None, R: np.ndarray, S: np.
     return E
 
 
-def reprojection_error(W2d, mask, R, X, *, mean: bool = False) -> float:
-    """Sum (``mean=True``: mean) over the points (f, j) where ``mask`` is True of
-    ``||w_f(x_j) - R_f s_f(x_j)||^2`` (both image coordinates; unit of the tracks squared).
-
-    With the observed points it is the data term with cameras R; with hidden points and
-    ``mean=True``, the hold-out score of :mod:`nldr.nrsfm.selection`.
+def reprojection_error(W2d, mask, R, X) -> float:
+    """Sum over the points (f, j) where ``mask`` is True of ``||w_f(x_j) - R_f s_f(x_j)||^2`` (both
+    image coordinates; unit of the tracks squared): the data term with cameras R.
 
     Parameters
     ----------
@@ -247,15 +230,12 @@ def reprojection_error(W2d, mask, R, X, *, mean: bool = False) -> float:
         Cameras (known or estimated).
     X : array, shape (F, 3P)
         Shapes as rows.
-    mean : bool, default False
     """
     W, mask = check_tracks(W2d, mask, min_points=0)
     F, P = mask.shape
     R, X = check_cameras(R, F), check_shapes(X, F, P)
-    if mean and not mask.any():
-        raise ValueError("mask has no True entry: no point to score")
     squared = np.sum((W.reshape(F, 2, P) - R @ X.reshape(F, 3, P)) ** 2, axis=1)[mask]
-    return float(squared.mean() if mean else squared.sum())
+    return float(squared.sum())
 
 
 def tnh_energy(W2d, mask, R, X, tau: float) -> float:

@@ -50,9 +50,8 @@ __all__ = [
     "WIDTH_MULTIPLES",
     "visibility_folds",
     "TrackReconstruction",
-    "TNHTauSelection",
+    "NRSfMSelection",
     "select_tnh_tau",
-    "KernelSelection",
     "select_kernel",
 ]
 
@@ -168,55 +167,73 @@ def search_points(W, mask, folds, estimator, grid, n_jobs, **options) -> Holdout
     return search.fit(X)
 
 
-def cv_table(search, names) -> pd.DataFrame:
-    """cv_results_ of a search as a DataFrame: ``names``, ``mean_test_error``, ``std_test_error``,
-    ``fit_time`` and the rule's columns."""
-    r = search.cv_results_
-    out = pd.DataFrame({name: np.asarray(r[f"param_{name}"], dtype=np.float64) for name in names})
-    out["mean_test_error"], out["std_test_error"] = r["mean_test_error"], r["std_test_error"]
-    out["fit_time"] = r["mean_fit_time"]
-    for extra in ("max_move", "active", "mean_diff_reference", "se_diff_reference"):
-        if extra in r:
-            out[extra] = r[extra]
-    return out
-
-
 @dataclass(repr=False)
-class TNHTauSelection:
-    """Outcome of :func:`select_tnh_tau`.
+class NRSfMSelection:
+    """Outcome of :func:`select_tnh_tau` (TNH's tau) and :func:`select_kernel` (the kernel method's).
 
     Attributes
     ----------
     tau_ : float
-        The chosen TNH weight (unit of the tracks squared).
+        The chosen weight: TNH's (unit of the tracks squared) or the kernel method's trace-norm weight.
+    width_multiple_, gamma_ : float
+        :func:`select_kernel`: the chosen multiple of the width rule's gamma, and that multiple times the
+        rule on the refit's start shapes (1 / unit of the tracks squared); NaN after :func:`select_tnh_tau`.
     cv_results_ : DataFrame
-        One row per candidate, by tau: ``tau, mean_test_error`` (mean over folds of the mean squared
-        reprojection error of the hidden points, unit of the tracks squared), ``std_test_error``
-        (sample sd over folds), ``fit_time`` (mean seconds of one fold solve).
+        One row per candidate (TNH by tau; kernel by width multiple, then tau): its values (``tau``,
+        ``width_multiple``), ``mean_test_error`` (mean over folds of the mean squared reprojection
+        error of the hidden points, unit of the tracks squared), ``std_test_error`` (sample sd over
+        folds), ``fit_time`` (mean seconds of one fold solve; warm-started candidates are cheaper); the
+        kernel's also ``max_move`` (largest relative change of the start shapes over the folds),
+        ``active`` (``max_move >= min_move``) and, with ``rule="reference"``, ``mean_diff_reference``
+        and ``se_diff_reference`` (mean and standard error over folds of the score minus the
+        reference's score in the same fold).
+    fold_scores_ : DataFrame, shape (n_folds, n_candidates)
+        Hold-out score of every candidate (columns as the rows of ``cv_results_``) in every fold (rows):
+        the paired values behind ``rule="reference"``.
     result_ : Reconstruction
-        TNH with estimated cameras at ``tau_`` on every observed point, from ``rigid_cameras_``
-        (:func:`~nldr.nrsfm.reconstruct`).
-    rigid_cameras_ : array, shape (F, 2, 3)
-        Rigid factorisation of every observed point (the refit's start).
+        The refit on every observed point at the chosen values (:func:`~nldr.nrsfm.reconstruct`).
     folds_ : list of bool arrays, shape (F, P)
         The hidden points of each fold.
+    start_ : (R, X)
+        Cameras (F, 2, 3) and shapes (F, 3P) the refit started from (TNH: the rigid cameras, no shapes).
     options_ : dict
-        The alternation's options of the folds and the refit (:func:`select_kernel`'s fold starts).
+        TNH: the alternation's options of the folds and the refit (:func:`select_kernel`'s fold starts).
     refit_time_ : float
-        CPU seconds of the refit alone (rigid factorisation and one alternation): the cost of one solve.
+        CPU seconds of the refit alone: the cost of one solve.
     """
 
     tau_: float
+    width_multiple_: float
+    gamma_: float
     cv_results_: pd.DataFrame
+    fold_scores_: pd.DataFrame
     result_: Reconstruction
-    rigid_cameras_: np.ndarray
     folds_: list
+    start_: tuple
     options_: dict
     refit_time_: float
 
     def __repr__(self) -> str:
-        n, k = len(self.cv_results_), len(self.folds_)
-        return f"TNHTauSelection(tau_={self.tau_:.4g}, candidates={n}, folds={k})"
+        return (
+            f"NRSfMSelection(tau_={self.tau_:.4g}, width_multiple_={self.width_multiple_:g}, "
+            f"gamma_={self.gamma_:.4g}, candidates={len(self.cv_results_)}, folds={len(self.folds_)})"
+        )
+
+
+def _outcome(search, names, folds, **fields) -> NRSfMSelection:
+    """The selection of a finished search over ``names``: its cv_results_ as a DataFrame and the
+    fold scores, with the refit's ``fields``."""
+    r = search.cv_results_
+    cv = pd.DataFrame({name: np.asarray(r[f"param_{name}"], dtype=np.float64) for name in names})
+    cv["mean_test_error"], cv["std_test_error"] = r["mean_test_error"], r["std_test_error"]
+    cv["fit_time"] = r["mean_fit_time"]
+    for extra in ("max_move", "active", "mean_diff_reference", "se_diff_reference"):
+        if extra in r:
+            cv[extra] = r[extra]
+    columns = pd.MultiIndex.from_arrays([cv[name] for name in names[::-1]], names=names[::-1])
+    splits = [r[f"split{k}_test_error"] for k in range(len(folds))]
+    scores = pd.DataFrame(np.array(splits), columns=columns).rename_axis(index="fold")
+    return NRSfMSelection(cv_results_=cv, fold_scores_=scores, folds_=folds, **fields)
 
 
 def select_tnh_tau(
@@ -230,7 +247,7 @@ def select_tnh_tau(
     n_jobs: int = 1,
     camera_search=False,
     **alternation_options,
-) -> TNHTauSelection:
+) -> NRSfMSelection:
     """Choose TNH's tau for NRSfM with unknown cameras by hold-out reprojection error.
 
     Per fold and tau: TNH with estimated cameras (:func:`~nldr.nrsfm.reconstruct`, cold start, to
@@ -258,8 +275,9 @@ def select_tnh_tau(
 
     Returns
     -------
-    TNHTauSelection
-        Ties go to the smallest tau.
+    NRSfMSelection
+        ``result_`` TNH with estimated cameras at ``tau_`` on every observed point, from the rigid
+        cameras ``start_[0]``. Ties go to the smallest tau.
     """
     W, mask = check_tracks(W2d, mask)
     n_jobs = check_count(n_jobs, "n_jobs")
@@ -274,58 +292,10 @@ def select_tnh_tau(
         W, mask, prior="tnh", tau=tau, initial_cameras=R0, camera_search=camera_search, **alternation_options
     )
     refit_time = time.process_time() - start
-    cv = cv_table(search, ["tau"])
-    return TNHTauSelection(tau, cv, result, R0, folds, dict(alternation_options), refit_time)
-
-
-@dataclass(repr=False)
-class KernelSelection:
-    """Outcome of :func:`select_kernel`.
-
-    Attributes
-    ----------
-    tau_ : float
-        The chosen trace-norm weight.
-    width_multiple_ : float
-        The chosen multiple of the width rule's gamma.
-    gamma_ : float
-        ``width_multiple_`` times the rule on the refit's start shapes (1 / unit of the tracks squared).
-    cv_results_ : DataFrame
-        One row per candidate, by width multiple then tau: ``tau, width_multiple, mean_test_error``
-        (mean squared hidden reprojection error, unit of the tracks squared), ``std_test_error``,
-        ``fit_time`` (mean seconds per fold solve; warm-started candidates are cheaper),
-        ``max_move`` (largest relative change of the start shapes over the folds), ``active``
-        (``max_move >= min_move``); with ``rule="reference"`` also ``mean_diff_reference`` and
-        ``se_diff_reference``: mean and standard error over folds of the score minus the
-        reference's score in the same fold.
-    result_ : Reconstruction
-        The refit on every observed point (:func:`~nldr.nrsfm.reconstruct`, the kernel prior), with the
-        known cameras or (after :func:`select_tnh_tau`) estimated ones.
-    fold_scores_ : DataFrame, shape (n_folds, n_candidates)
-        Hold-out score of every candidate (columns: (width_multiple, tau), as the rows of
-        ``cv_results_``) in every fold (rows): the paired values behind ``rule="reference"``.
-    folds_ : list of bool arrays, shape (F, P)
-    start_ : (R, X)
-        Cameras (F, 2, 3) and shapes (F, 3P) the refit started from.
-    refit_time_ : float
-        CPU seconds of the refit's kernel solve alone: the cost of one solve.
-    """
-
-    tau_: float
-    width_multiple_: float
-    gamma_: float
-    cv_results_: pd.DataFrame
-    fold_scores_: pd.DataFrame
-    result_: object
-    folds_: list
-    start_: tuple
-    refit_time_: float
-
-    def __repr__(self) -> str:
-        return (
-            f"KernelSelection(tau_={self.tau_:.4g}, width_multiple_={self.width_multiple_:g}, "
-            f"gamma_={self.gamma_:.4g}, candidates={len(self.cv_results_)})"
-        )
+    return _outcome(
+        search, ["tau"], folds, tau_=tau, width_multiple_=np.nan, gamma_=np.nan, result_=result,
+        start_=(R0, None), options_=dict(alternation_options), refit_time_=refit_time,
+    )  # fmt: skip
 
 
 def select_kernel(
@@ -333,7 +303,7 @@ def select_kernel(
     mask=None,
     *,
     R=None,
-    tnh: TNHTauSelection | None = None,
+    tnh: NRSfMSelection | None = None,
     taus=None,
     width_multiples=None,
     width_rule: str = "d_med",
@@ -350,7 +320,7 @@ def select_kernel(
     depth_scale: float | None = None,
     n_jobs: int = 1,
     **regularizer_options,
-) -> KernelSelection:
+) -> NRSfMSelection:
     """Choose the kernel regularizer's tau and width for NRSfM by hold-out reprojection error.
 
     Give exactly one of ``R`` (known cameras, Table 3) or ``tnh`` (a :func:`select_tnh_tau` result,
@@ -366,7 +336,7 @@ def select_kernel(
     R : array, shape (F, 2, 3), optional
         Known cameras. Each fold (and the refit) starts from the exact-fit TNH of its training points
         (:func:`~nldr.nrsfm.trace_norm_heuristic` with ``tnh_options``).
-    tnh : TNHTauSelection, optional
+    tnh : NRSfMSelection, optional
         Unknown cameras: its folds are reused, each fold starts from that fold's TNH (cameras and shapes)
         at the selected tau; every fold solve and the refit (from ``tnh.result_``) optimise cameras and
         shapes jointly (:func:`~nldr.nrsfm.reconstruct`, the fold solves from one start each, the refit
@@ -412,8 +382,9 @@ def select_kernel(
 
     Returns
     -------
-    KernelSelection
-        Ties go to the first row of ``cv_results_`` (smaller width multiple, then smaller tau).
+    NRSfMSelection
+        ``result_`` the kernel method's refit (known or, after :func:`select_tnh_tau`, estimated
+        cameras). Ties go to the first row of ``cv_results_`` (smaller width multiple, then smaller tau).
     """
     W, mask = check_tracks(W2d, mask)
     if (R is None) == (tnh is None):
@@ -454,10 +425,6 @@ def select_kernel(
     grid = [{"width_multiple": [float(m)], "tau": taus.tolist()} for m in multiples]
     path = {"path": "tau"} if warm_start else {}
     search = search_points(W, mask, folds, estimator, grid, n_jobs, min_move=min_move, **search_rule, **path)
-    cv = cv_table(search, ["tau", "width_multiple"])
-    columns = pd.MultiIndex.from_arrays([cv["width_multiple"], cv["tau"]], names=["width_multiple", "tau"])
-    splits = [search.cv_results_[f"split{k}_test_error"] for k in range(len(folds))]
-    scores = pd.DataFrame(np.array(splits), columns=columns).rename_axis(index="fold")
     best = search.best_params_
     if R is not None:  # the refit from the TNH of every observed point
         X0 = trace_norm_heuristic(W, R, mask, **tnh_options).x if X_start is None else X_start
@@ -471,8 +438,8 @@ def select_kernel(
     begin = time.process_time()
     refit.fit(np.where(point_entries(mask), W, np.nan))
     seconds = time.process_time() - begin
-    start = (R if R is not None else tnh.result_.R, refit.start_.x)
-    return KernelSelection(
-        float(best["tau"]), float(best["width_multiple"]), refit.gamma_, cv, scores, refit.result_, folds,
-        start, seconds,
+    return _outcome(
+        search, ["tau", "width_multiple"], folds, tau_=float(best["tau"]),
+        width_multiple_=float(best["width_multiple"]), gamma_=refit.gamma_, result_=refit.result_,
+        start_=(R if R is not None else tnh.result_.R, refit.start_.x), options_={}, refit_time_=seconds,
     )  # fmt: skip
