@@ -13,7 +13,7 @@ the robust TNH (its ``tau`` in ``tnh``). What runs:
   or with ``loss="huber"`` :func:`~nldr.nrsfm.admm.robust_trace_norm_heuristic`;
 - TNH, estimated cameras: TNH alternating with the camera LM from the rigid cameras
   (:func:`~nldr.nrsfm.camera_refinement.tnh_with_camera_refinement`), optionally followed by the
-  camera search (:func:`~nldr.nrsfm.camera_search.tnh_camera_search`);
+  camera search (:func:`~nldr.nrsfm.camera_refinement.tnh_camera_search`);
 - kernel, known cameras: :func:`~nldr.regularizer.minimize_regularized` on the reprojection term;
 - kernel, estimated cameras: cameras and shapes optimised jointly in every penalty stage, from
   several starts (:func:`~nldr.nrsfm.joint_kernel.joint_kernel_multistart`).
@@ -37,8 +37,7 @@ from ..kernels import d_max_width, d_med_width
 from ..regularizer import minimize_regularized
 from ..result import SolverResult
 from .admm import robust_trace_norm_heuristic, solve_admm
-from .camera_refinement import tnh_with_camera_refinement
-from .camera_search import tnh_camera_search
+from .camera_refinement import tnh_camera_search, tnh_with_camera_refinement
 from .factorization import initialize_cameras
 from .joint_kernel import joint_kernel_multistart
 from .reprojection import OrthographicReprojection, check_cameras, check_tracks, reprojection_error
