@@ -130,10 +130,10 @@ def test_rigid_factorization_full_data_is_exact():
     W, _, _, _ = rigid_scene(seed=1)
     F, P = W.shape[0], W.shape[1] // 2
     fac = rigid_factorization(W)
-    assert fac.M.shape == (F, 2, 3) and fac.S.shape == (3, P) and fac.x is fac.S
+    assert fac.M.shape == (F, 2, 3) and fac.x.shape == (3, P)
     assert (fac.nit, fac.status, fac.success) == (0, CONVERGED, True)
     assert fac.fun == pytest.approx(fac.rms**2 * W.size, rel=1e-9, abs=1e-26)
-    np.testing.assert_allclose(np.einsum("fck,kp->fcp", fac.M, fac.S).reshape(F, 2 * P), W, atol=1e-12)
+    np.testing.assert_allclose(np.einsum("fck,kp->fcp", fac.M, fac.x).reshape(F, 2 * P), W, atol=1e-12)
     assert fac.rms < 1e-13
 
 
@@ -146,7 +146,7 @@ def test_rigid_factorization_missing_data_completes_the_tracks():
     assert fac.success and fac.nit > 0 and fac.message.startswith("variable projection")
     assert fac.fun == pytest.approx(fac.rms**2 * 2 * mask.sum(), rel=1e-9)
     # noise-free and generic: the rank-3 completion is unique, so the unobserved entries are recovered too
-    fitted = np.einsum("fck,kp->fcp", fac.M, fac.S).reshape(F, 2 * P)
+    fitted = np.einsum("fck,kp->fcp", fac.M, fac.x).reshape(F, 2 * P)
     np.testing.assert_allclose(fitted, W, atol=1e-8 * np.abs(W).max())
     assert fac.rms < 1e-10 * np.abs(W).max()
 

@@ -56,11 +56,6 @@ class RigidFactorization(SolverResult):
     M: np.ndarray
     rms: float
 
-    @property
-    def S(self) -> np.ndarray:
-        """The affine rigid shape (3, P), same as ``x``."""
-        return self.x
-
 
 def _fit_affine_cameras(Wf3, S, mask):
     """Least-squares M_f (F, 2, 3) given S (3, P), over the observed points of each frame."""
@@ -134,7 +129,7 @@ def rigid_factorization(W2d, mask=None, *, max_iter: int = 500, tol: float = 1e-
     Returns
     -------
     RigidFactorization
-        Affine cameras ``M`` (F, 2, 3) and shape ``S`` (3, P); see :func:`metric_upgrade`.
+        Affine cameras ``M`` (F, 2, 3) and shape ``x`` (3, P); see :func:`metric_upgrade`.
 
     Raises
     ------

@@ -117,8 +117,7 @@ class TrackReconstruction(TransformerMixin, BaseEstimator):
         W = np.where(np.isnan(X), 0.0, X)
         options = dict(self.options or {})
         if self.prior == "tnh":
-            R0 = initialize_cameras(W, vis)
-            self.result_ = reconstruct(W, vis, prior="tnh", tau=self.tau, initial_cameras=R0, **options)
+            self.result_ = reconstruct(W, vis, prior="tnh", tau=self.tau, **options)  # from the rigid cameras
             self.move_ = np.inf
             return self
         warm = self.warm_start and hasattr(self, "start_") and np.array_equal(self.visible_, vis)
@@ -148,8 +147,7 @@ class TrackReconstruction(TransformerMixin, BaseEstimator):
         options = dict(self.start)
         if self.cameras is not None:
             return trace_norm_heuristic(W, self.cameras, vis, **options)
-        R0 = initialize_cameras(W, vis)
-        return reconstruct(W, vis, prior="tnh", tau=options.pop("tau"), initial_cameras=R0, **options)
+        return reconstruct(W, vis, prior="tnh", tau=options.pop("tau"), **options)
 
     def transform(self, X):
         """The reprojections (F, 2P) of the fit (whatever X: the fit's own tracks are completed)."""
