@@ -144,10 +144,8 @@ class TrackReconstruction(TransformerMixin, BaseEstimator):
     def _start(self, W, vis):
         if not isinstance(self.start, Mapping):
             return self.start
-        options = dict(self.start)
-        if self.cameras is not None:
-            return trace_norm_heuristic(W, self.cameras, vis, **options)
-        return reconstruct(W, vis, prior="tnh", tau=options.pop("tau"), **options)
+        cameras = "estimate" if self.cameras is None else self.cameras
+        return reconstruct(W, vis, cameras=cameras, prior="tnh", **dict(self.start))
 
     def transform(self, X):
         """The reprojections (F, 2P) of the fit (whatever X: the fit's own tracks are completed)."""
