@@ -48,7 +48,7 @@ AUTO_EXACT_MAX_ROWS = 150
 #: "The imputer's solver path"); the row count from which an exact-kernel solve warns
 AUTO_NYSTROEM_MIN_ROWS = LONG_SOLVE_ROWS
 #: ``method="auto"``'s landmarks from AUTO_NYSTROEM_MIN_ROWS rows (unless ``options`` sets them)
-AUTO_LANDMARKS = 300
+AUTO_LANDMARKS = 200
 #: options "exact" takes (method="auto" drops the others below AUTO_EXACT_MAX_ROWS rows)
 _EXACT_OPTIONS = frozenset(f.name for f in dataclasses.fields(ExactOptions))
 #: minimize_regularized's default penalty schedule
