@@ -170,8 +170,8 @@ class KernelRegularizerImputer(MaskedImputerBase):
         takes the options of "nystroem-warm"; its Nystroem-only ones (``landmarks``,
         ``landmark_seed``, ``exact_stages``, ``exact_tol``, ``last_landmarks``) apply only above
         :data:`AUTO_EXACT_MAX_ROWS` rows, and from :data:`AUTO_NYSTROEM_MIN_ROWS` rows only
-        ``landmarks`` (default :data:`AUTO_LANDMARKS`), ``landmark_seed`` and the tolerances. The Nystroem methods' ``landmark_seed`` defaults to a draw
-        from ``random_state``.
+        ``landmarks`` (default :data:`AUTO_LANDMARKS`), ``landmark_seed`` and the tolerances. The
+        Nystroem methods' ``landmark_seed`` defaults to a draw from ``random_state``.
     schedule : dict or None, default None
         The penalty schedule: ``rho0``, ``rho_growth``, ``rho_max`` of
         :func:`~nldr.regularizer.minimize_regularized` (None: its defaults 1, 10, 1e4, the paper's).
@@ -342,7 +342,8 @@ class KernelRegularizerImputer(MaskedImputerBase):
         if method == "exact":
             options = {k: v for k, v in options.items() if k in _EXACT_OPTIONS}
         elif method == "nystroem" and self.method == "auto":
-            options = {"landmarks": AUTO_LANDMARKS, **{k: v for k, v in options.items() if k in _NYSTROEM_OPTIONS}}
+            kept = {k: v for k, v in options.items() if k in _NYSTROEM_OPTIONS}
+            options = {"landmarks": AUTO_LANDMARKS, **kept}
         if method != "exact" and "landmark_seed" not in options:
             options["landmark_seed"] = int(
                 check_random_state(self.random_state).randint(np.iinfo(np.int32).max)
