@@ -43,12 +43,9 @@ SCHEDULE_KEYS = ("rho0", "rho_growth", "rho_max")
 #: ``method="auto"`` solves exactly up to this many rows and warm-starts from the Nystroem kernel above
 #: (docs/PERFORMANCE.md, "The imputer's solver path").
 AUTO_EXACT_MAX_ROWS = 150
-#: from this many rows ``method="auto"`` solves every stage on the Nystroem kernel (no exact last
-#: stage, whose n x n eigensolver grows as n^3), on AUTO_LANDMARKS landmarks (docs/PERFORMANCE.md,
-#: "The imputer's solver path"); the row count from which an exact-kernel solve warns
-AUTO_NYSTROEM_MIN_ROWS = LONG_SOLVE_ROWS
-#: ``method="auto"``'s landmarks from AUTO_NYSTROEM_MIN_ROWS rows (unless ``options`` sets them)
-AUTO_LANDMARKS = 200
+#: from here (where an exact solve warns) "auto" runs every stage on AUTO_LANDMARKS landmarks, no
+#: exact last stage (its eigensolver grows as n^3; docs/PERFORMANCE.md#auto-landmarks)
+AUTO_NYSTROEM_MIN_ROWS, AUTO_LANDMARKS = LONG_SOLVE_ROWS, 200
 #: options "exact" takes (method="auto" drops the others below AUTO_EXACT_MAX_ROWS rows)
 _EXACT_OPTIONS = frozenset(f.name for f in dataclasses.fields(ExactOptions))
 #: minimize_regularized's default penalty schedule
