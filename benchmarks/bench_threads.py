@@ -1,12 +1,14 @@
 """BLAS threads: the library's default against one and two threads, idle and busy (PERFORMANCE.md#threads).
 
 One completion per case: ``KernelRegularizerImputer(random_state=0)`` (defaults otherwise: standardised
-columns, the median width, the exact path up to 150 rows and the Nystroem warm start above; a fixed
-``random_state``, so that every fit is the same computation) on the first n oil-flow rows
-(train, then validation, then test split) with 25 % of the entries missing (mask seed 2016). At
-1000 rows the penalty schedule is cut to two stages (rho 1 and 10) of at most 15 inner iterations,
-at 3000 rows to one stage (rho 1) of one, to keep the benchmark cheap on a shared machine; the
-matrices, hence what a thread buys per operation, are the full problem's.
+columns, the hold-out search of width and tau, then the solver path ``method="auto"`` picks by
+size: exact up to 150 rows, the Nystroem warm start up to 1499, every stage on 200 landmarks from
+1500; a fixed ``random_state``, so that every fit is the same computation) on the first n oil-flow
+rows (train, then validation, then test split) with 25 % of the entries missing (mask seed 2016).
+From 1000 rows the penalty schedule of every solve (the search's and the final one) is cut to two
+stages (rho 1 and 10) of at most 15 inner iterations, to keep the benchmark cheap on a shared
+machine; the matrices, hence what a thread buys per operation, are the full problem's. The search's
+fold solves run on one thread in every setting (:func:`nldr._threads.single_blas_thread`).
 
 Thread settings, each in a fresh process so that nothing carries over:
 
@@ -61,8 +63,6 @@ W = np.where(mask, X, np.nan)
 kw = {}
 if n >= 1000:  # two penalty stages, few inner iterations: the full problem's matrices, fewer steps
     kw = {"schedule": {"rho0": 1.0, "rho_max": 10.0}, "options": {"max_inner": 15}}
-if n >= 3000:  # one stage of 1 inner iteration (each evaluation in the exact stage: a 3000 x 3000 eigh)
-    kw = {"schedule": {"rho0": 1.0, "rho_max": 1.0}, "options": {"max_inner": 1}}
 model = KernelRegularizerImputer(random_state=0, **kw)  # the same landmarks in every fit
 seen = set()
 if setting == "default":

@@ -165,6 +165,24 @@ def test_auto_method_by_size(rng):
     assert KernelRegularizerImputer().fit(W).method_ == "exact"
 
 
+def test_auto_method_runs_every_stage_on_landmarks_from_its_threshold(rng, monkeypatch):
+    """From AUTO_NYSTROEM_MIN_ROWS rows "auto" is method="nystroem" on AUTO_LANDMARKS landmarks (the
+    warm start's own options dropped, the landmark seed drawn from random_state), below it the warm start."""
+    from nldr.impute import regularizer as module
+
+    monkeypatch.setattr(module, "AUTO_EXACT_MAX_ROWS", 20)
+    monkeypatch.setattr(module, "AUTO_NYSTROEM_MIN_ROWS", 50)
+    monkeypatch.setattr(module, "AUTO_LANDMARKS", 15)
+    W, _ = hide(surface(60, rng, noise=0.01), 0.25, rng)
+    kw = {"gamma": None, "tau": 0.1, "random_state": 4}
+    auto = KernelRegularizerImputer(**kw, options={"exact_stages": 1}).fit(W)
+    explicit = KernelRegularizerImputer(**kw, method="nystroem", options={"landmarks": 15}).fit(W)
+    assert auto.method_ == "nystroem"
+    np.testing.assert_array_equal(auto.completed_, explicit.completed_)  # the same computation
+    assert KernelRegularizerImputer(**kw).fit(W[:49]).method_ == "nystroem-warm"
+    assert np.isfinite(auto.transform(W[:5] + 0.01)).all()
+
+
 def test_pandas_in_and_out_and_feature_names(rng):
     W, _ = hide(surface(30, rng), 0.2, rng)
     frame = pd.DataFrame(W, columns=list("abcdef"))

@@ -144,3 +144,64 @@ def test_the_regularizer_solves_on_the_chosen_threads(machine, monkeypatch):
             options={"max_inner": 20},
         )
     assert seen == {1} and (3 in callers or callers == {1})
+
+
+def test_an_outer_choice_holds_inside(machine):
+    """Inside a block the library already limited, its inner calls keep that count: a search's
+    one-thread folds stay on one thread on an idle machine, where a large solve alone would take 4."""
+    machine.update(cores=4, idle=1.0)
+    with threadpool_limits(3, user_api="blas"):
+        callers = _blas()
+        with _threads.single_blas_thread():
+            with _threads.blas_threads_for(1000):  # alone: 4 threads
+                inside = _blas()
+        with _threads.blas_threads_for(1000):
+            with _threads.blas_threads_for(10):  # alone: 1 thread
+                nested = _blas()
+        after = _blas()
+    assert inside == {(path, 1) for path, _ in callers}
+    assert nested == {(path, 4 if t == 3 else 1) for path, t in callers}  # a one-thread build stays at 1
+    assert after == callers  # every block restores the caller's setting
+
+
+def test_an_imputer_runs_its_own_arithmetic_on_the_chosen_threads(machine, monkeypatch):
+    """fit and transform set the count for the whole call, the estimator's arithmetic outside the
+    solver included (here its column standardisation and its neighbour search)."""
+    from nldr.impute import KernelRegularizerImputer
+    from nldr.impute import regularizer as module
+
+    seen = {"fit": set(), "transform": set()}
+    phase = {"now": "fit"}
+
+    def spy(name):
+        real = getattr(module, name)
+
+        def wrapped(*args, **kwargs):
+            seen[phase["now"]].update(t for _, t in _blas())
+            return real(*args, **kwargs)
+
+        monkeypatch.setattr(module, name, wrapped)
+
+    spy("observed_standardisation")
+    spy("nearest_rows")
+    machine.update(cores=4, idle=0.0)  # busy: the rule says 1
+    monkeypatch.setattr(_threads, "SMALL_PROBLEM_ROWS", 10)  # 30 rows count as large
+    rng = np.random.default_rng(3)
+    X = rng.random((30, 4))
+    W = np.where(rng.random(X.shape) > 0.2, X, np.nan)
+    model = KernelRegularizerImputer(
+        gamma=1.0,
+        tau=0.1,
+        n_neighbors=1,
+        starts="mean",
+        schedule={"rho_max": 10.0},
+        options={"max_inner": 10},
+    )
+    with threadpool_limits(3, user_api="blas"):
+        callers = {t for _, t in _blas()}
+        model.fit(W)
+        phase["now"] = "transform"
+        new = W[:3] + 0.01
+        model.transform(new)
+    assert seen["fit"] == {1} and seen["transform"] == {1}
+    assert 3 in callers or callers == {1}

@@ -10,7 +10,11 @@ second OpenBLAS that scipy loads (imported here, so that it is loaded before any
 The rule (:func:`blas_threads`): one thread below :data:`SMALL_PROBLEM_ROWS` samples; above, one per
 core that is idle when the solve starts (the process's cores, less those other processes keep busy,
 sampled from ``/proc/stat`` over :data:`SAMPLE_SECONDS` and reused for :data:`REUSE_SECONDS`), at
-least one. In the environment, ``NLDR_AUTO_THREADS=0`` leaves BLAS as the caller set it, and
+least one. The outermost call of the library decides: a public method (an imputer's ``fit`` and
+``transform``, ``minimize_regularized``, ``RobustKernelPCA``'s methods) sets the count for everything
+it runs, its own array arithmetic included, and the solvers it calls inside keep that count instead of
+choosing again (so a hold-out search that runs its folds on one thread, :func:`single_blas_thread`,
+stays on one). In the environment, ``NLDR_AUTO_THREADS=0`` leaves BLAS as the caller set it, and
 ``NLDR_AUTO_THREADS=small`` keeps only the first half of the rule (one thread below
 :data:`SMALL_PROBLEM_ROWS`, the caller's setting above): the pipeline's jobs run so, on their rule's
 threads, so that their results do not depend on the machine's load.
@@ -20,13 +24,21 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 import time
-from contextlib import nullcontext
+from contextlib import contextmanager, nullcontext
 
 import scipy.linalg  # noqa: F401  (loads scipy's OpenBLAS now, so every limit below reaches it)
 from threadpoolctl import threadpool_limits
 
-__all__ = ["SMALL_PROBLEM_ROWS", "SAMPLE_SECONDS", "REUSE_SECONDS", "blas_threads", "blas_threads_for"]
+__all__ = [
+    "SMALL_PROBLEM_ROWS",
+    "SAMPLE_SECONDS",
+    "REUSE_SECONDS",
+    "blas_threads",
+    "blas_threads_for",
+    "single_blas_thread",
+]
 
 #: Below this many samples (kernel rows) the solvers use one BLAS thread (docs/PERFORMANCE.md#threads).
 SMALL_PROBLEM_ROWS = 400
@@ -38,6 +50,7 @@ REUSE_SECONDS = 10.0
 IDLE_SHARE = 0.8
 
 _last: tuple[float, int] | None = None  # (time.monotonic() of the sample, idle cores)
+_chosen = threading.local()  # .depth > 0 inside a block whose thread count an outer call of ours set
 
 
 def _cores() -> int:
@@ -98,13 +111,34 @@ def blas_threads(n_samples: int) -> int:
     return idle_cores()
 
 
+@contextmanager
+def _limited(threads: int):
+    """Every loaded BLAS on ``threads`` threads for the block, which inner calls then keep."""
+    depth = getattr(_chosen, "depth", 0)
+    _chosen.depth = depth + 1
+    try:
+        with threadpool_limits(threads, user_api="blas"):
+            yield
+    finally:
+        _chosen.depth = depth
+
+
 def blas_threads_for(n_samples: int):
     """Context manager: every loaded BLAS on :func:`blas_threads` threads for the block.
 
-    ``NLDR_AUTO_THREADS=0``: no change; ``NLDR_AUTO_THREADS=small``: one thread below
+    Inside a block an outer call already limited (this function or :func:`single_blas_thread`), no
+    change. ``NLDR_AUTO_THREADS=0``: no change; ``NLDR_AUTO_THREADS=small``: one thread below
     :data:`SMALL_PROBLEM_ROWS`, no change above.
     """
+    if getattr(_chosen, "depth", 0):
+        return nullcontext()
     mode = os.environ.get("NLDR_AUTO_THREADS", "1")
     if mode == "0" or (mode == "small" and n_samples >= SMALL_PROBLEM_ROWS):
         return nullcontext()
-    return threadpool_limits(blas_threads(n_samples), user_api="blas")
+    return _limited(blas_threads(n_samples))
+
+
+def single_blas_thread():
+    """Context manager: every loaded BLAS on one thread for the block, kept by the library's calls
+    inside it (for work that runs several solves side by side, one per core)."""
+    return _limited(1)

@@ -15,6 +15,9 @@ training row completed on its own would not be the row ``fit_transform`` returne
 therefore returns the fitted estimate for any row identical to a training row (same values, same
 missing entries), so that ``fit(X).transform(X)`` equals ``fit_transform(X)`` as scikit-learn's
 contract says, and completes the other rows with ``_complete``.
+
+BLAS threads. ``fit`` and ``transform`` run on the library's thread choice for the training rows'
+count (:func:`nldr._threads.blas_threads_for`), the estimator's own array arithmetic included.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ import numpy as np
 from sklearn.base import BaseEstimator, OneToOneFeatureMixin, TransformerMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .._threads import blas_threads_for
 from .._validation import check_masked_matrix
 
 __all__ = ["MaskedImputerBase"]
@@ -111,7 +115,8 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
 
     def _fit(self, X):
         W, mask = self._validated(X, reset=True)
-        X_hat, result = self._solve(W, mask)
+        with blas_threads_for(W.shape[0]):
+            X_hat, result = self._solve(W, mask)
         self.completed_ = np.asarray(X_hat, dtype=np.float64)
         self.result_ = result
         if hasattr(result, "nit"):
@@ -147,7 +152,8 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
         out[old] = self.completed_[seen[old]]
         new = ~old
         if new.any():
-            out[new] = self._complete(W[new], mask[new])
+            with blas_threads_for(self.completed_.shape[0]):
+                out[new] = self._complete(W[new], mask[new])
         return out
 
     def __sklearn_tags__(self):

@@ -14,7 +14,7 @@ from ..baselines._masked import mean_fill, observed_standardisation
 from ..data_terms import MaskedHuber, MaskedLeastSquares
 from ..kernels import squared_distances
 from ..preimage import Subspace, average_solutions, complete_from_starts, nearest_rows
-from ..regularizer import minimize_regularized
+from ..regularizer import LONG_SOLVE_ROWS, minimize_regularized
 from ._base import MaskedImputerBase
 from ._new_rows import NoComponentsError, regularizer_subspace, row_folds, search_transform_knobs
 
@@ -43,6 +43,9 @@ SCHEDULE_KEYS = ("rho0", "rho_growth", "rho_max")
 #: ``method="auto"`` solves exactly up to this many rows and warm-starts from the Nystroem kernel above
 #: (docs/PERFORMANCE.md, "The imputer's solver path").
 AUTO_EXACT_MAX_ROWS = 150
+#: from here (where an exact solve warns) "auto" runs every stage on AUTO_LANDMARKS landmarks, no
+#: exact last stage (its eigensolver grows as n^3; docs/PERFORMANCE.md#auto-landmarks)
+AUTO_NYSTROEM_MIN_ROWS, AUTO_LANDMARKS = LONG_SOLVE_ROWS, 200
 #: options "exact" takes (method="auto" drops the others below AUTO_EXACT_MAX_ROWS rows)
 _EXACT_OPTIONS = frozenset(f.name for f in dataclasses.fields(ExactOptions))
 #: minimize_regularized's default penalty schedule
@@ -154,15 +157,18 @@ class KernelRegularizerImputer(MaskedImputerBase):
         100 landmark rows, then the last stage exactly from there (an exact stopping test, possibly
         another local minimum: docs/PERFORMANCE.md). "nystroem": every stage on the Nystroem kernel
         (not the exact minimiser). "auto": "exact" up to :data:`AUTO_EXACT_MAX_ROWS` rows,
-        "nystroem-warm" above.
+        "nystroem-warm" above, and "nystroem" on :data:`AUTO_LANDMARKS` landmarks from
+        :data:`AUTO_NYSTROEM_MIN_ROWS` rows (an approximate minimiser whose cost grows linearly in
+        the rows).
     options : dict or None, default None
         The method's options, as :func:`~nldr.regularizer.minimize_regularized` takes them
         (tolerances, ``max_inner``, ``eigensolver``, ``landmarks``, ...); an option the method does
         not take is a ValueError naming the method (raised by every fit, before any solve). "auto"
         takes the options of "nystroem-warm"; its Nystroem-only ones (``landmarks``,
         ``landmark_seed``, ``exact_stages``, ``exact_tol``, ``last_landmarks``) apply only above
-        :data:`AUTO_EXACT_MAX_ROWS` rows. The Nystroem methods' ``landmark_seed`` defaults to a draw
-        from ``random_state``.
+        :data:`AUTO_EXACT_MAX_ROWS` rows, and from :data:`AUTO_NYSTROEM_MIN_ROWS` rows only
+        ``landmarks`` (default :data:`AUTO_LANDMARKS`), ``landmark_seed`` and the tolerances. The
+        Nystroem methods' ``landmark_seed`` defaults to a draw from ``random_state``.
     schedule : dict or None, default None
         The penalty schedule: ``rho0``, ``rho_growth``, ``rho_max`` of
         :func:`~nldr.regularizer.minimize_regularized` (None: its defaults 1, 10, 1e4, the paper's).
@@ -217,7 +223,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
     transform_results_ : dict
         (n_neighbors, starts) -> mean squared error of the row folds, when they were searched.
     method_ : str
-        The solver path used, "exact" or "nystroem-warm".
+        The solver path used: "exact", "nystroem-warm" or "nystroem".
     mean_, scale_ : arrays, shape (n_features,)
         The standardisation (zeros and ones when ``standardize`` is False).
     result_ : nldr.regularizer.RegularizerResult
@@ -327,11 +333,15 @@ class KernelRegularizerImputer(MaskedImputerBase):
         method = self.method
         if method == "auto":
             method = "exact" if n <= AUTO_EXACT_MAX_ROWS else "nystroem-warm"
+            method = "nystroem" if n >= AUTO_NYSTROEM_MIN_ROWS else method
         schedule = dict(self.schedule or {})
         options = dict(self.options or {})
         if method == "exact":
             options = {k: v for k, v in options.items() if k in _EXACT_OPTIONS}
-        elif "landmark_seed" not in options:
+        elif method == "nystroem" and self.method == "auto":
+            kept = {k: v for k, v in options.items() if k in _NYSTROEM_OPTIONS}
+            options = {"landmarks": AUTO_LANDMARKS, **kept}
+        if method != "exact" and "landmark_seed" not in options:
             options["landmark_seed"] = int(
                 check_random_state(self.random_state).randint(np.iinfo(np.int32).max)
             )

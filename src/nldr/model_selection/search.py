@@ -16,9 +16,9 @@ import numpy as np
 import pandas as pd
 from sklearn.base import BaseEstimator, TransformerMixin, clone
 from sklearn.model_selection import ParameterGrid
-from threadpoolctl import threadpool_limits
 
 from .._cv import run_jobs, say, summarise_folds
+from .._threads import single_blas_thread
 from .._validation import check_count, check_positive
 from .folds import SCORES, fold_score, holdout_folds
 from .rules import RULES, choose, reference_index
@@ -130,7 +130,7 @@ def _fold_job(estimator, candidates, fold_params, fold, X, path, stop, scoring, 
     """Every candidate on one fold: rows (candidate, test_error, fit_time[, move]). Along a ``path`` the
     candidates of one group (same parameters but ``path``) share one warm-started estimator, and the
     first of every group after the first starts from a copy of the previous group's first fit."""
-    with threadpool_limits(1):
+    with single_blas_thread():
         rows = []
         if path is None:
             for k, params in enumerate(candidates):
@@ -516,14 +516,14 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
         """Search on X (array (n, d), NaN where missing) and, with ``refit``, fit the chosen candidate."""
         X = self._search(X)
         if self.refit:
-            with threadpool_limits(1):
+            with single_blas_thread():
                 self.best_estimator_ = self._best(X).fit(X)
         return self
 
     def fit_transform(self, X, y=None):
         """Search on X, refit the chosen candidate with its ``fit_transform(X)`` and return that (n, d)."""
         X = self._search(X)
-        with threadpool_limits(1):
+        with single_blas_thread():
             self.best_estimator_ = self._best(X)
             return self.best_estimator_.fit_transform(X)
 
