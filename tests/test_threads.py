@@ -53,19 +53,21 @@ def machine(monkeypatch):
 )
 def test_large_problems_get_one_thread_per_idle_core(machine, cores, idle, expected):
     machine.update(cores=cores, idle=idle)
-    assert _threads.blas_threads(_threads.SMALL_PROBLEM_ROWS) == expected
-    assert _threads.blas_threads(_threads.SMALL_PROBLEM_ROWS - 1) == 1  # small: one, whatever is idle
+    assert _threads.blas_threads(_threads.IDLE_CORES_MIN_ROWS) == expected
+    assert _threads.blas_threads(_threads.IDLE_CORES_MIN_ROWS - 1) == 1  # below: one, whatever is idle
+    assert _threads.blas_threads(_threads.SMALL_PROBLEM_ROWS) == 1
 
 
 def test_the_sample_is_reused_for_a_while(machine, monkeypatch):
     machine.update(cores=2, idle=1.0)
-    assert _threads.blas_threads(1000) == 2
+    n = _threads.IDLE_CORES_MIN_ROWS
+    assert _threads.blas_threads(n) == 2
     samples = machine["samples"]
     machine.update(idle=0.0)
-    assert _threads.blas_threads(1000) == 2  # within REUSE_SECONDS: the same answer, no new sample
+    assert _threads.blas_threads(n) == 2  # within REUSE_SECONDS: the same answer, no new sample
     assert machine["samples"] == samples
     monkeypatch.setattr(_threads, "REUSE_SECONDS", 0.0)
-    assert _threads.blas_threads(1000) == 1  # stale: sampled again
+    assert _threads.blas_threads(n) == 1  # stale: sampled again
     assert machine["samples"] > samples
 
 
@@ -129,6 +131,7 @@ def test_the_regularizer_solves_on_the_chosen_threads(machine, monkeypatch):
 
     machine.update(cores=4, idle=0.0)
     monkeypatch.setattr(_threads, "SMALL_PROBLEM_ROWS", 10)  # a 40-row problem counts as large
+    monkeypatch.setattr(_threads, "IDLE_CORES_MIN_ROWS", 10)
     rng = np.random.default_rng(5)
     X = rng.random((40, 4))
     mask = rng.random(X.shape) > 0.2
@@ -150,12 +153,13 @@ def test_an_outer_choice_holds_inside(machine):
     """Inside a block the library already limited, its inner calls keep that count: a search's
     one-thread folds stay on one thread on an idle machine, where a large solve alone would take 4."""
     machine.update(cores=4, idle=1.0)
+    large = _threads.IDLE_CORES_MIN_ROWS
     with threadpool_limits(3, user_api="blas"):
         callers = _blas()
         with _threads.single_blas_thread():
-            with _threads.blas_threads_for(1000):  # alone: 4 threads
+            with _threads.blas_threads_for(large):  # alone: 4 threads
                 inside = _blas()
-        with _threads.blas_threads_for(1000):
+        with _threads.blas_threads_for(large):
             with _threads.blas_threads_for(10):  # alone: 1 thread
                 nested = _blas()
         after = _blas()
@@ -186,6 +190,7 @@ def test_an_imputer_runs_its_own_arithmetic_on_the_chosen_threads(machine, monke
     spy("nearest_rows")
     machine.update(cores=4, idle=0.0)  # busy: the rule says 1
     monkeypatch.setattr(_threads, "SMALL_PROBLEM_ROWS", 10)  # 30 rows count as large
+    monkeypatch.setattr(_threads, "IDLE_CORES_MIN_ROWS", 10)
     rng = np.random.default_rng(3)
     X = rng.random((30, 4))
     W = np.where(rng.random(X.shape) > 0.2, X, np.nan)

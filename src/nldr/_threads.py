@@ -7,16 +7,16 @@ one thread per core whatever the load, so the solvers set the thread count thems
 with ``threadpoolctl``, which reaches every BLAS loaded at that moment: numpy's OpenBLAS and the
 second OpenBLAS that scipy loads (imported here, so that it is loaded before any solver asks).
 
-The rule (:func:`blas_threads`): one thread below :data:`SMALL_PROBLEM_ROWS` samples; above, one per
-core that is idle when the solve starts (the process's cores, less those other processes keep busy,
+The rule (:func:`blas_threads`): one thread below :data:`IDLE_CORES_MIN_ROWS` samples; from there, one
+per core that is idle when the solve starts (the process's cores, less those other processes keep busy,
 sampled from ``/proc/stat`` over :data:`SAMPLE_SECONDS` and reused for :data:`REUSE_SECONDS`), at
 least one. The outermost call of the library decides: a public method (an imputer's ``fit`` and
 ``transform``, ``minimize_regularized``, ``RobustKernelPCA``'s methods) sets the count for everything
 it runs, its own array arithmetic included, and the solvers it calls inside keep that count instead of
 choosing again (so a hold-out search that runs its folds on one thread, :func:`single_blas_thread`,
 stays on one). In the environment, ``NLDR_AUTO_THREADS=0`` leaves BLAS as the caller set it, and
-``NLDR_AUTO_THREADS=small`` keeps only the first half of the rule (one thread below
-:data:`SMALL_PROBLEM_ROWS`, the caller's setting above): the pipeline's jobs run so, on their rule's
+``NLDR_AUTO_THREADS=small`` sets one thread below :data:`SMALL_PROBLEM_ROWS` and leaves the caller's
+setting from there: the pipeline's jobs run so, on their rule's
 threads, so that their results do not depend on the machine's load.
 """
 
@@ -33,6 +33,7 @@ from threadpoolctl import threadpool_limits
 
 __all__ = [
     "SMALL_PROBLEM_ROWS",
+    "IDLE_CORES_MIN_ROWS",
     "SAMPLE_SECONDS",
     "REUSE_SECONDS",
     "blas_threads",
@@ -40,8 +41,13 @@ __all__ = [
     "single_blas_thread",
 ]
 
-#: Below this many samples (kernel rows) the solvers use one BLAS thread (docs/PERFORMANCE.md#threads).
+#: Below this many samples (kernel rows) the solvers use one BLAS thread whatever the mode (except
+#: ``NLDR_AUTO_THREADS=0``) (docs/PERFORMANCE.md#threads).
 SMALL_PROBLEM_ROWS = 400
+#: From this many samples the library's own choice uses every idle core; below, one thread: on a
+#: 2-core machine a second thread lost at every size measured up to 3000 rows, idle or busy, and a
+#: dense eigendecomposition gained 1.3x at 3000 and 1.45x at 5000 on an idle one (PERFORMANCE.md#threads).
+IDLE_CORES_MIN_ROWS = 4000
 #: How long the idle cores are sampled (seconds of wall time, no CPU) before a large solve.
 SAMPLE_SECONDS = 0.1
 #: A sample is reused for this long (seconds), so that a loop of solves samples once.
@@ -105,8 +111,8 @@ def idle_cores() -> int:
 
 def blas_threads(n_samples: int) -> int:
     """The BLAS threads the solvers use on a problem of ``n_samples`` samples (kernel rows): 1 below
-    :data:`SMALL_PROBLEM_ROWS`, else :func:`idle_cores`."""
-    if n_samples < SMALL_PROBLEM_ROWS:
+    :data:`IDLE_CORES_MIN_ROWS`, else :func:`idle_cores`."""
+    if n_samples < IDLE_CORES_MIN_ROWS:
         return 1
     return idle_cores()
 
