@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._threads import blas_threads_for
 from .._validation import check_positive
 from ..baselines import pkpca_impute, rkpca_impute
 from ..baselines._masked import mean_fill
@@ -49,8 +48,7 @@ def _complete_on(space: Subspace, W: np.ndarray, mask: np.ndarray) -> np.ndarray
     start = space.X_fit[nearest].mean(axis=1)
     start[~mask.any(axis=1)] = space.X_fit.mean(axis=0)
     X0 = np.where(mask, W, start)
-    with blas_threads_for(space.X_fit.shape[0]):
-        X_hat = complete_from_starts(space, W, mask, X0[:, None, :])[:, 0]
+    X_hat = complete_from_starts(space, W, mask, X0[:, None, :])[:, 0]
     return np.where(mask, W, X_hat)
 
 

@@ -8,7 +8,6 @@ import numpy as np
 from sklearn.utils import check_random_state
 
 from .._options import ExactOptions, NystroemOptions, last_stage_only, solver_options
-from .._threads import blas_threads_for
 from .._validation import check_count, check_positive
 from ..baselines._masked import mean_fill, observed_standardisation
 from ..data_terms import MaskedHuber, MaskedLeastSquares
@@ -540,8 +539,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         if starts == "mean":
             rows = rows.mean(axis=1, keepdims=True)
         X0 = np.where(mask[:, None, :], Z[:, None, :], rows)
-        with blas_threads_for(S.shape[0]):
-            X_hat = complete_from_starts(self._subspace(), Z, mask, X0)
+        X_hat = complete_from_starts(self._subspace(), Z, mask, X0)
         X_hat = X_hat[:, 0] if starts == "mean" else average_solutions(X_hat, distance, self.weights)
         return np.where(mask, W, X_hat * self.scale_ + self.mean_)
 
