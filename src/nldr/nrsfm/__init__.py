@@ -1,14 +1,10 @@
 """Non-rigid structure from motion (paper Section 4.3).
 
-:func:`reconstruct` is the one entry point of reconstruction (:mod:`nldr.nrsfm.reconstruct`): known
-or estimated cameras, the trace-norm heuristic or the kernel regularizer, squared or robust loss; it
-returns a :class:`Reconstruction`. :func:`trace_norm_heuristic` is TNH with known cameras and a choice
-of solver. Energies: :func:`reprojection_error`, :func:`tnh_energy`, :func:`kernel_energy`; evaluation
-up to the global gauge: :func:`e3d` and :func:`camera_error`. Parameters from the tracks alone:
-:func:`select_tnh_tau` and :func:`select_kernel` (hold-out reprojection error on hidden 2D points,
-:func:`visibility_folds`). Layouts (:mod:`nldr.nrsfm.layout`): shapes as rows X (F, 3P), tracks W
-(F, 2P), cameras R (F, 2, 3), visibility masks (F, P). Every solver result derives from
-:class:`nldr.result.SolverResult`.
+:func:`reconstruct` is the one entry point of reconstruction: known or estimated cameras, TNH or the
+kernel regularizer, squared or robust loss (:func:`trace_norm_heuristic`: TNH with known cameras and a
+choice of solver). Energies: :func:`reprojection_error`, :func:`tnh_energy`, :func:`kernel_energy`;
+evaluation up to the global gauge: :func:`e3d`, :func:`camera_error`; parameters from the tracks alone:
+:func:`select_tnh_tau`, :func:`select_kernel`. Layouts: :mod:`nldr.nrsfm.layout`.
 """
 
 from .factorization import initialize_cameras

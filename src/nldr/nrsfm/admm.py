@@ -98,35 +98,25 @@ def solve_admm(
         Iteration cap; reaching it gives ``status == MAX_ITER`` and a RuntimeWarning.
     beta : float > 0, optional
         Initial penalty in normalised units (tracks divided by their RMS); default 1.0.
-    X0 : array, shape (F, 3P), optional
-        Warm start for Z (unit of the tracks); default the least-norm exact fit.
-    Y0 : array, shape (F, 3P), optional
-        Warm start for the multiplier Y (dimensionless, e.g. ``result.dual``); default zeros. A warm
-        start from a previous result needs X0, Y0 and ideally ``beta=result.options["final_beta"]``.
+    X0, Y0 : arrays (F, 3P), optional
+        Warm starts for Z (unit of the tracks; default the least-norm exact fit) and the multiplier Y
+        (dimensionless; default zeros): from a result ``res``, ``X0=res.x, Y0=res.dual,
+        beta=res.options["final_beta"]``.
     relaxation : float in (0, 2), default 1.6
         Relaxation parameter alpha (1 = plain ADMM).
-    adaptive : bool, default True
-        Adapt beta by residual balancing (at most 50 changes).
-    verbose : bool, default False
-        Print the residuals every 100 iterations and at the end.
+    adaptive, verbose : bool, default True, False
+        Adapt beta by residual balancing; print the residuals every 100 iterations and at the end.
 
     Returns
     -------
     TNHResult
-        ``x`` (F, 3P) in the unit of the tracks, feasible to rounding; ``method="admm"``, ``tau=0.0``,
-        ``exact_fit=True``, ``fun = nuclear_norm``; ``dual`` the multiplier Y (F, 3P), ``duality_gap``
-        (unit of the tracks), ``options`` with ``final_beta``.
+        ``x`` (F, 3P) feasible to rounding, ``method="admm"``, ``tau=0.0``, ``fun = nuclear_norm``,
+        ``dual`` the multiplier Y (F, 3P), ``duality_gap``, ``options`` with ``final_beta``.
 
     Raises
     ------
     ValueError
-        For tol outside (0, 1), max_iter not a positive integer, beta <= 0, relaxation outside (0, 2),
-        X0 or Y0 of the wrong shape or not finite, and when no exact fit exists.
-
-    Warns
-    -----
-    RuntimeWarning
-        When ``max_iter`` is reached before the tolerance is met (status MAX_ITER).
+        For options out of range, X0 or Y0 of the wrong shape or not finite, and when no exact fit exists.
     """
     start = time.perf_counter()
     options = _check_options(tol, max_iter, beta, relaxation, adaptive)
@@ -168,13 +158,9 @@ def robust_trace_norm_heuristic(
 
     Parameters
     ----------
-    W2d : array, shape (F, 2P)
-        Image tracks as rows (row f = x of the P points, then y), length unit of the data; entries of
-        unobserved points are ignored (they may be NaN).
-    R : array, shape (F, 2, 3)
-        Known orthographic cameras.
-    mask : bool array, shape (F, P), optional
-        True where point j is observed in frame f (both coordinates). Default: all observed.
+    W2d, R, mask
+        Tracks (F, 2P), known cameras (F, 2, 3) and visibility (F, P) as in
+        :func:`~nldr.nrsfm.trace_norm_heuristic`.
     tau : float > 0
         Weight of ||X||_* against the l1 reprojection error (dimensionless).
     tol, max_iter, beta, relaxation, adaptive, verbose
@@ -195,11 +181,6 @@ def robust_trace_norm_heuristic(
     ------
     ValueError
         For malformed tracks, cameras or mask, tau <= 0, and the option errors of :func:`solve_admm`.
-
-    Warns
-    -----
-    RuntimeWarning
-        When ``max_iter`` is reached before the tolerance is met (status MAX_ITER).
     """
     start = time.perf_counter()
     term = OrthographicReprojection(W2d, R, mask)  # validates tracks, cameras and mask
@@ -393,15 +374,10 @@ class _Splitting:
                     status = CONVERGED
                     break
             if options["adaptive"] and changes < _ADAPT_MAX_CHANGES:
-                factor = (
-                    _ADAPT_FACTOR
-                    if r_rel > _ADAPT_MU * s_rel
-                    else 1 / _ADAPT_FACTOR
-                    if s_rel > _ADAPT_MU * r_rel
-                    else None
-                )
-                if factor is None:
+                up, down = r_rel > _ADAPT_MU * s_rel, s_rel > _ADAPT_MU * r_rel
+                if not (up or down):
                     continue
+                factor = _ADAPT_FACTOR if up else 1 / _ADAPT_FACTOR
                 beta *= factor
                 U /= factor
                 changes += 1

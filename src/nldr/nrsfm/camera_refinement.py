@@ -1,37 +1,24 @@
-"""Table 4's TNH with estimated cameras: the camera LM and the shape/camera alternation.
+"""Table 4's TNH with estimated cameras: the camera LM, the shape/camera alternation, the camera search.
 
 After the rigid initialisation (:mod:`nldr.nrsfm.factorization`) the paper alternates between the 3D
 shapes and the cameras, "parameterising each R_i with quaternions ... using LM" (Section 4.3):
 
 - :func:`camera_lm`: Levenberg-Marquardt on the per-frame quaternions with the shapes fixed,
   vectorised over frames (given the shapes, the frames are independent 4-parameter problems);
-- :func:`tnh_with_camera_refinement`: the alternation of a proximal-gradient TNH shape step
+- :func:`tnh_with_camera_refinement`: the alternation of a FISTA shape step
   (:func:`~nldr.nrsfm.tnh.fista_tnh`) with the camera LM, block-coordinate descent on
-  tau ||X||_* + reprojection error, run to convergence;
-- :func:`tnh_camera_search`: a data-only search that re-seats cameras breaking the motion.
+  tau ||X||_* + reprojection error, run to convergence (stopped early it leaves e3D two to four times
+  the converged value; every tau starts from the rigid cameras: docs/REPRODUCTION.md#table-4-tnh);
+- :func:`tnh_camera_search`: the alternation can stop where a few frames end with a camera turned over
+  (90-180 degrees away, their shapes bent to fit), which the local LM cannot repair; the search re-seats
+  those frames (:func:`propose_cameras`) and keeps what lowers the TNH energy (tracks alone, no ground
+  truth: a better optimiser of the same problem).
 
-It must run to convergence (stopped early it leaves e3D two to four times the converged value), and
-every tau starts from the rigid cameras (docs/REPRODUCTION.md#table-4-tnh). Maintenance note (speed):
-the shape step's FISTA tolerance follows the alternation's progress and its momentum carries over from
-one outer iteration to the next, and the camera LM forms its normal equations from 3x3 summaries
-(:func:`lm_normal_equations`); none of this moves the fixed point of the first implementation,
+The shape step's adaptive tolerance, its carried momentum and the LM's 3x3 normal equations
+(:func:`lm_normal_equations`) keep the fixed point of the plain alternation,
 :func:`nldr.reference.nrsfm.tnh_with_camera_refinement_reference` (tests/test_unknown_cameras_speed.py).
-
-Camera search. The alternation can stop in a poor basin where a few frames end with a camera turned
-over (90-180 degrees away, their shapes bent to fit), which its local camera LM cannot repair
-(docs/REPRODUCTION.md#table-4-tnh). :func:`propose_cameras` re-seats the frames whose camera is more
-than ``threshold_deg`` from the prediction of its neighbours: at constant angular velocity from the
-two previous frames (forward, using the frames already re-seated), the two next frames (backward), or
-the geodesic midpoint of the two neighbours (local). :func:`tnh_camera_search` continues the
-alternation from each proposal and keeps the one of lowest converged energy if it is lower than the
-start's, repeating from there while that holds. Every decision uses the TNH energy at the given tau
-and the tracks alone (no ground truth): a better optimiser of the same problem, not a different
-estimator.
-
-Layouts as in :mod:`nldr.nrsfm.layout`; the tracks are assumed centred (w = R s, no translation).
-Gauge: (R_f Q, Q^T S_f) reproduces the tracks for any orthogonal Q, so estimates are compared with the
-ground truth after one global alignment (:func:`~nldr.nrsfm.metrics.e3d` with ``align=True``,
-:func:`~nldr.nrsfm.metrics.camera_error`), as the benchmark's ``compareStructs.m`` does.
+Tracks are centred (w = R s); the estimates are defined up to the global gauge (R_f Q, Q^T S_f), so they
+are compared with the ground truth after one alignment (:func:`~nldr.nrsfm.metrics.e3d`, ``align=True``).
 """
 
 from __future__ import annotations
@@ -70,20 +57,9 @@ __all__ = [
 def lm_normal_equations(J, C2, SE):
     """J^T J (n, 4, 4) and -J^T r (n, 4) of the per-frame camera LM from 3x3 and 3x2 summaries.
 
-    With the residual r = mask o (W - R S) of a frame and D_i = dR/dq_i S (2 x P), the normal equations
-    need J^T J = sum D_i . D_j and J^T r = -sum D_i . E over the observed entries (E the masked residual).
-    With J_c (3 x 4) the camera Jacobian of image row c, C = S diag(mask) S^T (3 x 3, fixed while the
-    shapes are) and S E^T (3 x 2): J^T J = sum_c J_c^T C J_c and -J^T r = sum_c J_c^T (S E^T)[:, c], which
-    avoids the (2, P, 4) array D per frame. Stacking J_0 over J_1 (6 x 4), both are matrix products.
-
-    Parameters
-    ----------
-    J : array, shape (n, 2, 3, 4)
-        d R / d q.
-    C2 : array, shape (n, 6, 6)
-        Block diagonal diag(C, C).
-    SE : array, shape (n, 3, 2)
-        S E^T.
+    With J_c (3 x 4) the Jacobian d R / d q of image row c (``J`` (n, 2, 3, 4)), C = S diag(mask) S^T and
+    E the masked residual: J^T J = sum_c J_c^T C J_c and -J^T r = sum_c J_c^T (S E^T)[:, c], which avoids
+    the (2, P, 4) array dR/dq_i S per frame. ``C2`` (n, 6, 6) is diag(C, C), ``SE`` (n, 3, 2) is S E^T.
     """
     n = J.shape[0]
     Js = J.reshape(n, 6, 4)
@@ -172,25 +148,18 @@ class CameraShapeResult(SolverResult):
 
     Attributes
     ----------
-    x : array, shape (F, 3P)
-        Shapes of the last shape step (unit of the tracks).
+    x, R : arrays (F, 3P) and (F, 2, 3)
+        Shapes of the last shape step and cameras of the last camera step (unit of the tracks).
     fun : float
         The joint energy tau ||X||_* + reprojection error after the last outer iteration.
-    status, message
+    status, message, nit
         CONVERGED when the windowed relative decrease of the joint energy fell below ``tol``, MAX_ITER
-        when ``max_outer`` was reached first.
-    nit : int
-        Outer iterations (shape step + camera step).
-    R : array, shape (F, 2, 3)
-        Cameras after the last camera step.
-    history : array, shape (nit,)
-        Reprojection error (sum of squares over observed points) after each camera step.
-    energy_history : array, shape (nit,)
-        The joint energy after each outer iteration.
+        when ``max_outer`` was reached first; ``nit`` outer iterations (shape step + camera step).
+    history, energy_history : arrays (nit,)
+        The reprojection error (sum of squares over observed points) and the joint energy after each.
     search : dict or None
-        After :func:`tnh_camera_search`: ``energies`` (the start's TNH
-        energy, then each accepted round's), ``trials`` (round, mode, frames re-seated, energy) of every
-        proposal continued, ``n_alternations`` (alternations run, each to convergence).
+        After :func:`tnh_camera_search`: ``energies`` (the start's TNH energy, then each accepted
+        round's), ``trials`` (round, mode, frames re-seated, energy) and ``n_alternations``.
     """
 
     R: np.ndarray
@@ -215,18 +184,13 @@ def tnh_with_camera_refinement(
 
     Parameters
     ----------
-    W2d : array, shape (F, 2P)
-        Centred image tracks as rows (unobserved entries are ignored).
-    mask : bool array, shape (F, P) or None
-        Visibility (None: all observed); every frame needs 3 observed points.
+    W2d, mask : arrays (F, 2P) and (F, P) or None
+        Centred tracks and visibility (:mod:`nldr.nrsfm.layout`); every frame needs 3 observed points.
     R0 : array, shape (F, 2, 3)
-        Initial cameras (projected to orthonormal rows), e.g.
-        :func:`~nldr.nrsfm.factorization.initialize_cameras`.
+        Initial cameras (projected to orthonormal rows), e.g. :func:`~nldr.nrsfm.initialize_cameras`.
     tau : float > 0
         Trace-norm weight, in the unit of the tracks squared.
-    max_outer : int, default 20000
-    tol : float > 0, default 1e-8
-    window : int, default 10
+    max_outer, tol, window : int, float > 0, int
     X0 : array, shape (F, 3P), optional
         Start of the first shape step (default zeros, the cold start Table 4's protocol uses).
 
@@ -367,15 +331,11 @@ def tnh_camera_search(
 
     Parameters
     ----------
-    W2d : array, shape (F, 2P)
-    mask : bool array, shape (F, P) or None
+    W2d, mask, tau
+        As in :func:`tnh_with_camera_refinement`.
     start : CameraShapeResult
         A converged alternation at this ``tau``.
-    tau : float > 0
-    max_rounds : int >= 1, default 2
-    proposals : subset of :data:`PROPOSALS`
-    threshold_deg : float > 0, default 30
-    rtol : float > 0, default 1e-6
+    max_rounds, proposals, threshold_deg, rtol : int >= 1, subset of :data:`PROPOSALS`, float, float
 
     Returns
     -------

@@ -46,12 +46,9 @@ class CvxpyTNH:
 
     Parameters
     ----------
-    W2d : array, shape (F, 2P)
-        Image tracks as rows (row f = x of the P points, then y), length unit of the data.
-    R : array, shape (F, 2, 3)
-        Known orthographic cameras.
-    mask : bool array, shape (F, P), optional
-        True where point j is observed in frame f. Default: all observed.
+    W2d, R, mask
+        Tracks (F, 2P), known cameras (F, 2, 3) and visibility (F, P), as in
+        :func:`~nldr.nrsfm.trace_norm_heuristic`.
 
     Attributes
     ----------
@@ -94,8 +91,7 @@ class CvxpyTNH:
         Parameters
         ----------
         tau : float or None
-            Weight of ||X||_* against the sum of squared reprojection errors (the data's squared unit
-            per unit of nuclear norm). None or 0 solves the exact-fit form.
+            Weight of ||X||_* (unit of the tracks squared); None or 0 solves the exact-fit form.
         solver : str, default "SCS"
             A cvxpy conic solver that handles semidefinite cones ("SCS", "CLARABEL", ...).
         solver_options : dict, optional
@@ -155,17 +151,8 @@ class CvxpyTNH:
         stats = problem.solver_stats
         n_iter = None if stats is None else stats.num_iters
         return TNHResult(
-            x=X,
-            fun=float(problem.value),
-            status=CONVERGED if status == cp.OPTIMAL else INACCURATE,
-            message=f"{solver} ({form}): {status}",
-            nit=int(n_iter or 0),
-            wall_time=wall,
-            method="cvxpy",
-            solver=solver,
-            tau=tau_value,
-            exact_fit=exact,
-            **fit_summary(self.data_term, X),
-            options=options,
+            x=X, fun=float(problem.value), status=CONVERGED if status == cp.OPTIMAL else INACCURATE,
+            message=f"{solver} ({form}): {status}", nit=int(n_iter or 0), wall_time=wall, method="cvxpy",
+            solver=solver, tau=tau_value, exact_fit=exact, **fit_summary(self.data_term, X), options=options,
             solver_time=None if stats is None else stats.solve_time,
-        )
+        )  # fmt: skip

@@ -110,17 +110,15 @@ def rigid_factorization(W2d, mask=None, *, max_iter: int = 500, tol: float = 1e-
     Full data: the truncated SVD of the stacked (2F, P) matrix (the global optimum, Tomasi-Kanade).
     Missing data: variable projection (Wiberg) on the observed entries: M is eliminated frame by frame
     in closed form and the 3P entries of S are optimised by a trust-region Gauss-Newton method
-    (``least_squares(method="trf")``, see :data:`_LSQ_METHOD`) with Kaufman's Jacobian, from the SVD of
-    the zero-filled matrix. Variable projection reaches the
-    global optimum of low-rank completion from simple starts far more often than alternating least
-    squares (Hong & Fitzgibbon 2015); on noise-free rigid tracks it recovers an exact factorisation.
+    (``least_squares(method="trf")``) with Kaufman's Jacobian, from the SVD of the zero-filled matrix.
+    It reaches the global optimum of low-rank completion from simple starts far more often than
+    alternating least squares (Hong & Fitzgibbon 2015); on noise-free rigid tracks it is exact.
 
     Parameters
     ----------
-    W2d : array, shape (F, 2P)
-        Image tracks as rows, centred (no translation is estimated); unobserved entries are ignored.
-    mask : bool array, shape (F, P), optional
-        True where point j is observed in frame f. Default: all observed. Every frame needs >= 3 points.
+    W2d, mask : arrays (F, 2P) and (F, P), optional
+        Centred tracks (no translation is estimated) and visibility (:mod:`nldr.nrsfm.layout`; default
+        all observed); every frame needs >= 3 points.
     max_iter : int, default 500
         Missing data only: residual evaluations of the trust-region solver (``max_nfev``).
     tol : float > 0, default 1e-12
@@ -131,10 +129,6 @@ def rigid_factorization(W2d, mask=None, *, max_iter: int = 500, tol: float = 1e-
     RigidFactorization
         Affine cameras ``M`` (F, 2, 3) and shape ``x`` (3, P); see :func:`metric_upgrade`.
 
-    Raises
-    ------
-    ValueError
-        If ``W2d`` or ``mask`` is malformed or a frame has fewer than 3 observed points.
     """
     start = time.perf_counter()
     W, mask = check_tracks(W2d, mask)
@@ -180,17 +174,8 @@ def rigid_factorization(W2d, mask=None, *, max_iter: int = 500, tol: float = 1e-
 
 def _metric_rows(a, b):
     """Coefficients of a^T Q b in the 6 unknowns (Q00, Q01, Q02, Q11, Q12, Q22) of a symmetric Q."""
-    return np.stack(
-        [
-            a[:, 0] * b[:, 0],
-            a[:, 0] * b[:, 1] + a[:, 1] * b[:, 0],
-            a[:, 0] * b[:, 2] + a[:, 2] * b[:, 0],
-            a[:, 1] * b[:, 1],
-            a[:, 1] * b[:, 2] + a[:, 2] * b[:, 1],
-            a[:, 2] * b[:, 2],
-        ],
-        axis=1,
-    )
+    pairs = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+    return np.stack([a[:, i] * b[:, j] + (a[:, j] * b[:, i] if i != j else 0) for i, j in pairs], axis=1)
 
 
 def metric_upgrade(M, *, refine: bool = True) -> np.ndarray:
@@ -270,14 +255,10 @@ def initialize_cameras(W2d, mask=None, *, refine_metric: bool = True, max_iter: 
 
     Parameters
     ----------
-    W2d : array, shape (F, 2P)
-        Centred image tracks as rows; unobserved entries are ignored.
-    mask : bool array, shape (F, P), optional
-        Visibility; default all observed. Every frame needs >= 3 observed points.
+    W2d, mask, max_iter
+        As in :func:`rigid_factorization`.
     refine_metric : bool, default True
         Polish the corrective matrix by nonlinear least squares (see :func:`metric_upgrade`).
-    max_iter : int, default 500
-        Passed to :func:`rigid_factorization` (missing data only).
 
     Returns
     -------

@@ -82,32 +82,11 @@ def _loss(E, delta) -> float:
 def joint_value_grad(Z, q, Q0, W3, m3, gamma, tau, rho, center=False, hint=None, delta=None, spectrum=False):
     """Energy (2) of the module docstring and its gradients; no validation.
 
-    Parameters
-    ----------
-    Z : array (F, 3, P)
-        Shapes in the cameras' frames.
-    q : array (F, 4)
-        Local quaternions: Q_f = A(q_f) Q0_f.
-    Q0 : array (F, 3, 3)
-        Reference rotations.
-    W3 : array (F, 2, P)
-        Tracks, zero where unobserved.
-    m3 : array (F, 1, P)
-        Visibility as 0/1 weights.
-    gamma, tau, rho : float
-    center : bool
-    hint : RankHint, optional
-    delta : float > 0, optional
-        Huber threshold of the reprojection error (None: squared loss).
-    spectrum : bool
-        Also return the kernel's kept spectrum ``(lam, U, l)``.
-
-    Returns
-    -------
-    value : float
-    grad_Z : array (F, 3, P)
-    grad_q : array (F, 4)
-    (lam, U, l) : only with ``spectrum``
+    Z (F, 3, P) are the shapes in the cameras' frames, q (F, 4) the local quaternions of Q_f =
+    A(q_f) Q0_f (Q0 (F, 3, 3)), W3 (F, 2, P) the tracks (zero where unobserved), m3 (F, 1, P) the
+    visibility as 0/1 weights, ``delta`` the Huber threshold (None: squared loss), ``hint`` a
+    :class:`~nldr._reduced.RankHint`. Returns ``(value, grad_Z (F, 3, P), grad_q (F, 4))``, and with
+    ``spectrum`` also the kernel's kept spectrum ``(lam, U, l)``.
     """
     F, _, P = Z.shape
     A, dA = quaternion_rotation(q, jacobian=True)
@@ -154,17 +133,8 @@ def block_curvature(value_grad, v, grad, block, step: float) -> float:
     By a forward difference of gradients, (g(v + h d) - g(v)) . d / h with |d| = 1 and h = ``step``
     (exact for a quadratic up to rounding); 0.0 if the gradient vanishes on the block.
 
-    Parameters
-    ----------
-    value_grad : callable v -> (value, gradient)
-    v, grad : array (n,)
-        The point and the gradient there.
-    block : bool array (n,)
-    step : float > 0
-
-    Returns
-    -------
-    float (may be <= 0 where the energy is not convex along d)
+    ``value_grad``: v -> (value, gradient); ``v``, ``grad`` (n,): the point and the gradient there;
+    ``block`` bool (n,). The value may be <= 0 where the energy is not convex along d.
     """
     d = np.where(block, grad, 0.0)
     norm = float(np.linalg.norm(d))
@@ -234,25 +204,17 @@ def solve_joint_kernel(
 
     Parameters
     ----------
-    W2d : array (F, 2P)
-        Centred image tracks as rows.
-    mask : bool array (F, P) or None
-    R0 : array (F, 2, 3)
-        Starting cameras (e.g. a TNH's).
-    X0 : array (F, 3P)
-        Starting shapes (e.g. a TNH's).
+    W2d, mask : arrays (F, 2P) and (F, P) or None
+        Centred tracks and visibility (:mod:`nldr.nrsfm.layout`).
+    R0, X0 : arrays (F, 2, 3) and (F, 3P)
+        Starting cameras and shapes (e.g. a TNH's).
     gamma, tau : float > 0
         RBF inverse squared width and trace-norm weight.
-    rho0, rho_growth, rho_max : float
-        Penalty schedule (Table 4's defaults).
-    center : bool, default False
-        Double-centre the kernel.
-    max_inner : int, default 3000
-        L-BFGS iterations per stage.
-    tol, gtol : float > 0
-        L-BFGS's relative energy decrease and (scaled) gradient tolerances.
-    isolation_guard : bool, default True
-        As in :func:`~nldr.regularizer.minimize_regularized`.
+    rho0, rho_growth, rho_max, center, isolation_guard
+        Penalty schedule (Table 4's defaults), kernel centring and the isolation guard, as in
+        :func:`~nldr.regularizer.minimize_regularized`.
+    max_inner, tol, gtol : int, float > 0, float > 0
+        L-BFGS's iterations per stage, relative energy decrease and (scaled) gradient tolerances.
     delta : float > 0, optional
         Huber threshold of the reprojection error, in the unit of the tracks (None: squared loss).
 
@@ -287,19 +249,8 @@ def solve_joint_kernel(
         Z, Q = unpack(state)
 
         def value_grad(v):
-            value, gZ, gq = joint_value_grad(
-                v[:n_z].reshape(F, 3, P),
-                v[n_z:].reshape(F, 4),
-                Q,
-                W3,
-                m3,
-                gamma,
-                tau,
-                rho,
-                center,
-                hint,
-                delta,
-            )
+            Zv, qv = v[:n_z].reshape(F, 3, P), v[n_z:].reshape(F, 4)
+            value, gZ, gq = joint_value_grad(Zv, qv, Q, W3, m3, gamma, tau, rho, center, hint, delta)
             return value, np.concatenate([gZ.ravel(), gq.ravel()])
 
         v0 = np.concatenate([Z.ravel(), identity.ravel()])
@@ -343,15 +294,10 @@ def joint_kernel_multistart(W2d, mask, R0, X0, gammas, *, tau: float, multistart
 
     Parameters
     ----------
-    W2d : array (F, 2P)
-    mask : bool array (F, P) or None
-    R0 : array (F, 2, 3)
-        Starting cameras (a TNH's).
-    X0 : array (F, 3P)
-        Starting shapes (a TNH's).
+    W2d, mask, R0, X0, tau
+        As in :func:`solve_joint_kernel`.
     gammas : dict
         Label -> RBF inverse squared width.
-    tau : float > 0
     multistart : bool, default True
     **options
         Further keyword arguments of :func:`solve_joint_kernel` (the schedule, tolerances, ``delta``).

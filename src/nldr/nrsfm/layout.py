@@ -34,17 +34,8 @@ __all__ = [
 def stack_to_rows(M, dim: int = 3) -> np.ndarray:
     """Stacked per-frame blocks (dim*F, P) -> samples as rows (F, dim*P).
 
-    Parameters
-    ----------
-    M : array, shape (dim*F, P)
-        ``S`` (dim=3, 3D shapes) or ``W`` (dim=2, image tracks), frames stacked vertically.
-    dim : {3, 2}
-        Rows per frame: 3 for shapes, 2 for image tracks.
-
-    Returns
-    -------
-    X : array, shape (F, dim*P)
-        Row f is ``M[dim*f:dim*f+dim, :].ravel()`` (coordinate-major: all x, then all y, ...).
+    ``M`` is ``S`` (dim=3, 3D shapes) or ``W`` (dim=2, image tracks) with the frames stacked
+    vertically; row f of the result is ``M[dim*f:dim*f+dim, :].ravel()`` (all x, then all y, ...).
     """
     M = as_float_matrix(M, "M", allow_nan=True)
     if dim not in (2, 3):
@@ -88,22 +79,14 @@ def random_visibility_mask(
     return mask.reshape(F, P)
 
 
-def visibility_folds(
-    mask,
-    n_folds: int = 3,
-    random_state=0,
-    *,
-    holdout_fraction: float | None = None,
-    min_per_frame: int = 3,
-    min_per_point: int = 1,
-) -> list[np.ndarray]:
+def visibility_folds(mask, n_folds: int = 3, random_state=0, *, holdout_fraction: float | None = None):
     """Hidden 2D points of the cross-validation folds: disjoint subsets of the observed points.
 
     The observed (frame, point) pairs are shuffled with ``random_state``; fold k hides the k-th chunk
     of ``round(holdout_fraction * n_observed)`` of them (default: the k-th of ``n_folds`` equal shares,
-    a partition), then un-hides points, in shuffled order, until every frame keeps ``min_per_frame``
-    training points (an orthographic camera has 5 degrees of freedom) and every point ``min_per_point``
-    frames. A frame or point with fewer observations than that in ``mask`` itself is never hidden.
+    a partition), then un-hides points, in shuffled order, until every frame keeps 3 training points (an
+    orthographic camera has 5 degrees of freedom) and every point 1 frame. A frame or point with fewer
+    observations than that in ``mask`` itself is never hidden.
 
     Parameters
     ----------
@@ -114,8 +97,6 @@ def visibility_folds(
         Seed of the shuffle: the same seed gives the same folds.
     holdout_fraction : float in (0, 1 / n_folds], optional
         Share of the observed points each fold hides (before the un-hiding above); default 1 / n_folds.
-    min_per_frame, min_per_point : int >= 0, defaults 3 and 1
-        Training observations every frame and every point keeps.
 
     Returns
     -------
@@ -136,8 +117,6 @@ def visibility_folds(
             raise ValueError(
                 f"holdout_fraction * n_folds must be <= 1 (the folds are disjoint); got {frac} * {n_folds}"
             )
-    min_per_frame = check_count(min_per_frame, "min_per_frame") if min_per_frame else 0
-    min_per_point = check_count(min_per_point, "min_per_point") if min_per_point else 0
     observed = np.flatnonzero(mask.ravel())
     if observed.size < n_folds:
         raise ValueError(f"mask has {observed.size} observed points, fewer than n_folds = {n_folds}")
@@ -150,7 +129,7 @@ def visibility_folds(
         hidden = np.zeros(mask.size, dtype=bool)
         hidden[chunk] = True
         hidden = hidden.reshape(F, P)
-        for axis, minimum in ((1, min_per_frame), (0, min_per_point)):
+        for axis, minimum in ((1, 3), (0, 1)):  # training points per frame, frames per point
             train = (mask & ~hidden).sum(axis=axis)
             for idx in np.flatnonzero(train < minimum):
                 # un-hide this frame's (point's) hidden points in shuffled order until it has enough

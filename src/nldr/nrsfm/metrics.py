@@ -1,38 +1,13 @@
 """Evaluation of NRSfM reconstructions: the normalised mean 3D error of the CMU mocap benchmark.
 
-Definition pinned against the benchmark's evaluation code
---------------------------------------------------------
-The paper (Section 4.3) follows "the standard protocol in [Dai et al. 2012, Akhter et al. 2009]":
-e3D = 1 / (sigma F P) sum_ij e_ij, with sigma "the mean of standard deviation for 3 coordinates for
-the ground truth 3D structures". The phrase leaves open whether the standard deviation is pooled over
-all frames or taken per frame. The evaluation function ``compareStructs.m`` distributed with Akhter
-et al.'s trajectory-space code (http://cvlab.lums.edu.pk/nrsfm/) and reused unchanged by Dai, Li & He's
-CVPR 2012 code (e.g. GitHub ``jvlmdr/low-rank-nrsfm``, file ``dai-2012/compareStructs.m``, called from
-``dai-2012/NRSFM_BMM.m`` as ``mean(compareStructs(S_GT, Shat))``) computes, for a ground truth
-``S`` (3F, P):
-
-1. ``sigma = mean(std(S, 1, 2))``: the population standard deviation (normalised by P) of each of
-   the 3F rows across the P points, i.e. per frame and per coordinate, then averaged over all frames
-   and the 3 coordinates (not one pooled deviation per coordinate over all frames);
-2. the ground truth is centred per row (per frame and coordinate), both shapes are divided by sigma;
-3. one global orthogonal matrix aligns the estimate to the ground truth (the nearest orthogonal
-   matrix to the least-squares 3x3 map; relevant only when the cameras were estimated; some copies
-   of the file omit this step);
-4. per frame, the mean over points of the Euclidean distance; the reported error is the mean over
-   frames.
-
-:func:`e3d` does exactly this, except that it also centres the estimate per frame (translation is not
-observable under orthography) and the optional alignment (off by default: with ground-truth cameras
-the reconstruction is already in the world frame) is the orthogonal Procrustes solution. Because
-every frame is centred, the pooled per-coordinate variance equals the mean per-frame variance, so the
-pooled alternative would give sqrt(mean(var)) >= mean(std) (Jensen) and a slightly smaller error;
-:func:`ground_truth_sigma` exposes both.
-
-Estimated cameras (Table 4) are evaluated the same way, up to one global orthogonal transform:
-:func:`camera_error` is the mean angle to the true cameras after :func:`global_camera_alignment` (or
-after the shapes' :func:`procrustes_rotation`). With unknown cameras the shapes of ``e3d(...,
-align=True)`` are the estimate centred per frame and rotated (reflected) by the ``procrustes_rotation``
-of the centred shapes.
+e3D = 1 / (sigma F P) sum_fj ||s_fj - s_fj^gt|| (paper Section 4.3), pinned to the benchmark's
+evaluation function ``compareStructs.m`` (Akhter et al. 2009, reused by Dai, Li & He 2012):
+sigma is the population standard deviation of every (frame, coordinate) row of the ground truth over
+the P points, averaged over the 3F rows; both shapes are centred per frame (translation is not
+observable under orthography); with estimated cameras one global orthogonal alignment (rotation or
+reflection, :func:`procrustes_rotation`) comes first. The derivation and the pooled alternative of
+:func:`ground_truth_sigma` are in docs/REPRODUCTION.md#table-3-sigma. Cameras are compared up to the
+same global gauge: :func:`camera_error` after :func:`global_camera_alignment`.
 """
 
 from __future__ import annotations
@@ -64,17 +39,7 @@ def _as_shapes(X, name: str, P: int) -> np.ndarray:
 def center_per_frame(X, P: int) -> np.ndarray:
     """Subtract, in every frame, the centroid of its P points.
 
-    Parameters
-    ----------
-    X : array, shape (F, 3P)
-        Shapes as rows (see :mod:`nldr.nrsfm.layout`), any length unit.
-    P : int
-
-    Returns
-    -------
-    Xc : array, shape (F, 3P)
-        Same unit; every frame has zero mean in each coordinate.
-    """
+    X (F, 3P), shapes as rows in any length unit, -> the same with zero mean per frame and coordinate."""
     P = check_count(P, "P (number of points)")
     X = _as_shapes(X, "X", P)
     blocks = X.reshape(X.shape[0], 3, P)
@@ -163,29 +128,22 @@ def e3d_per_frame(X_est, X_gt, P: int, *, align: bool = False) -> np.ndarray:
 
 
 def e3d(X_est, X_gt, P: int, *, align: bool = False) -> float:
-    """Normalised mean 3D error e3D = (1 / (sigma F P)) sum_{f,j} ||s_fj - s_fj^gt||.
-
-    Both shapes are centred per frame first; sigma is the mean over the F frames and the 3
-    coordinates of the population standard deviation of the centred ground truth across the P points,
-    as in ``compareStructs.m`` of Akhter et al. (2009), reused by Dai, Li & He (2012); see the module
-    docstring for the reference and :func:`ground_truth_sigma` for the pooled alternative.
+    """Normalised mean 3D error e3D = (1 / (sigma F P)) sum_{f,j} ||s_fj - s_fj^gt|| (module docstring).
 
     Parameters
     ----------
-    X_est : array, shape (F, 3P)
-        Estimated shapes as rows (row f = frame f's X, Y, Z coordinates, coordinate-major).
-    X_gt : array, shape (F, 3P)
-        Ground truth in the same length unit (the value is unit-free).
+    X_est, X_gt : arrays, shape (F, 3P)
+        Estimated and true shapes as rows, in one length unit (the value is unit-free).
     P : int
         Number of points.
     align : bool, default False
-        Apply one global orthogonal Procrustes alignment of the estimate to the ground truth before
-        measuring (the protocol when cameras are estimated; unnecessary with ground-truth cameras).
+        One global orthogonal Procrustes alignment of the estimate first (the protocol with estimated
+        cameras; with ground-truth cameras the reconstruction is already in the world frame).
 
     Returns
     -------
-    e3d : float
-        Dimensionless (in units of sigma).
+    float
+        Dimensionless (in units of sigma): the mean of :func:`e3d_per_frame`.
     """
     return float(np.mean(e3d_per_frame(X_est, X_gt, P, align=align)))
 
@@ -194,15 +152,7 @@ def global_camera_alignment(R_est, R_gt, *, allow_reflection: bool = True) -> np
     """The orthogonal Q minimising sum_f ||R_gt,f - R_est,f Q^T||_F^2 (cameras transform as R Q^T
     when shapes transform as Q S).
 
-    Parameters
-    ----------
-    R_est, R_gt : arrays, shape (F, 2, 3)
-    allow_reflection : bool, default True
-
-    Returns
-    -------
-    Q : array, shape (3, 3)
-    """
+    R_est, R_gt (F, 2, 3) -> Q (3, 3); ``allow_reflection`` as in :func:`procrustes_rotation`."""
     R_est = check_cameras(R_est, name="R_est")
     R_gt = check_cameras(R_gt, R_est.shape[0], name="R_gt")
     # ||A - B Q^T||^2 = const - 2 tr(Q^T A^T B), M = sum_f A_f^T B_f

@@ -1,25 +1,22 @@
 """One entry point for NRSfM reconstruction: :func:`reconstruct`, returning a :class:`Reconstruction`.
 
-``cameras`` is either the known cameras R (F, 2, 3) (Table 3) or ``"estimate"`` (Table 4): rigid
-factorisation (:func:`~nldr.nrsfm.factorization.initialize_cameras`) and then cameras refined with the
-shapes. ``prior`` is the trace-norm heuristic (``"tnh"``, the paper's linear baseline) or the kernel
-regularizer (``"kernel"``, the paper's method), which starts from a TNH reconstruction. ``loss`` is
-the squared reprojection error or a robust one: for the kernel method the Huber loss with threshold
-``delta``; for TNH (known cameras) the l1 loss, the Huber loss's delta -> 0 limit, which needs no
-threshold (:mod:`nldr.nrsfm.admm`). The Huber kernel method therefore starts by default from
-the robust TNH (its ``tau`` in ``tnh``). What runs:
+``cameras`` is the known cameras R (F, 2, 3) (Table 3) or ``"estimate"`` (Table 4: rigid factorisation,
+:func:`~nldr.nrsfm.initialize_cameras`, then cameras refined with the shapes). ``prior`` is the
+trace-norm heuristic (``"tnh"``, the paper's linear baseline) or the kernel regularizer (``"kernel"``,
+the paper's method, started from a TNH reconstruction). ``loss="huber"`` is the Huber loss (threshold
+``delta``) for the kernel method and, for TNH with known cameras, the l1 loss, its delta -> 0 limit
+(:mod:`nldr.nrsfm.admm`), which is then the Huber kernel method's default start. What runs:
 
-- TNH, known cameras: :func:`~nldr.nrsfm.trace_norm_heuristic` (exact fit by ADMM unless ``tau``),
-  or with ``loss="huber"`` :func:`~nldr.nrsfm.admm.robust_trace_norm_heuristic`;
-- TNH, estimated cameras: TNH alternating with the camera LM from the rigid cameras
-  (:func:`~nldr.nrsfm.camera_refinement.tnh_with_camera_refinement`), optionally followed by the
-  camera search (:func:`~nldr.nrsfm.camera_refinement.tnh_camera_search`);
+- TNH, known cameras: :func:`trace_norm_heuristic` or
+  :func:`~nldr.nrsfm.admm.robust_trace_norm_heuristic`;
+- TNH, estimated cameras: :func:`~nldr.nrsfm.camera_refinement.tnh_with_camera_refinement` from the
+  rigid cameras, optionally followed by :func:`~nldr.nrsfm.camera_refinement.tnh_camera_search`;
 - kernel, known cameras: :func:`~nldr.regularizer.minimize_regularized` on the reprojection term;
-- kernel, estimated cameras: cameras and shapes optimised jointly in every penalty stage, from
-  several starts (:func:`~nldr.nrsfm.joint_kernel.joint_kernel_multistart`).
+- kernel, estimated cameras: cameras and shapes jointly in every penalty stage, from several starts
+  (:func:`~nldr.nrsfm.joint_kernel.joint_kernel_multistart`).
 
-The kernel method's width is a rule of the paper (``"d_max"``, ``"d_med"``) applied to the start's
-shapes, or a gamma.
+The kernel method's width is a rule of the paper (``"d_max"``, ``"d_med"``) on the start's shapes, or a
+gamma.
 """
 
 from __future__ import annotations
@@ -70,9 +67,8 @@ def trace_norm_heuristic(
 ) -> TNHResult:
     """Solve TNH with known cameras (:mod:`nldr.nrsfm.tnh`), exact-fit (``tau`` None or 0) or penalised.
 
-    The paper runs TNH with tau = 1e-7 in the data's units; at that strength the penalised problem is
-    the exact-fit problem in practice, and the exact fit is the numerically sound way to solve it
-    (docs/REPRODUCTION.md#table-3-tnh).
+    The paper's tau = 1e-7 (units of the data) makes the penalised problem the exact-fit one in practice,
+    and the exact fit is the numerically sound way to solve it (docs/REPRODUCTION.md#table-3-tnh).
 
     Parameters
     ----------
@@ -84,35 +80,28 @@ def trace_norm_heuristic(
     mask : bool array, shape (F, P), optional
         True where point j is observed in frame f (both coordinates). Default: all observed.
     tau : float >= 0 or None, default None
-        Weight of ||X||_* against the sum of squared reprojection errors (the data's squared unit per
-        unit of nuclear norm). None or 0 solves the exact-fit form.
+        Weight of ||X||_* against the sum of squared reprojection errors (unit of the tracks squared).
     method : {"admm", "cvxpy"}, default "admm"
-        Case-insensitive. ``"admm"``: the exact fit only (:func:`~nldr.nrsfm.admm.solve_admm`, cost per
-        iteration linear in F, a certified duality gap); ``"cvxpy"``: either form, as a semidefinite
-        program (:class:`~nldr.nrsfm.cvxpy_tnh.CvxpyTNH`, an optional dependency), the reference for
-        small problems; for a tau sweep use :class:`~nldr.nrsfm.cvxpy_tnh.CvxpyTNH`, which compiles once.
+        Case-insensitive. ``"admm"``: the exact fit only (:func:`~nldr.nrsfm.admm.solve_admm`, a certified
+        duality gap); ``"cvxpy"``: either form as a semidefinite program, the small-problem reference (an
+        optional dependency; :class:`~nldr.nrsfm.cvxpy_tnh.CvxpyTNH` compiles once for a tau sweep).
     **options
-        Options of the method's solver: ``"admm"``: ``tol`` (default 1e-6), ``max_iter``, ``beta``,
-        ``X0``, ``Y0``, ``relaxation``, ``adaptive``, ``verbose`` (warm start from a result ``res``:
-        ``X0=res.x, Y0=res.dual, beta=res.options["final_beta"]``); ``"cvxpy"``: ``solver`` (default
-        ``"SCS"``), ``solver_options``, ``warm_start``, ``verbose``.
+        The solver's: ``"admm"``: those of :func:`~nldr.nrsfm.admm.solve_admm` (``tol`` 1e-6, ``max_iter``,
+        warm starts, ...); ``"cvxpy"``: ``solver`` (default ``"SCS"``), ``solver_options``,
+        ``warm_start``, ``verbose``.
 
     Returns
     -------
     TNHResult
-        ``x`` the shapes (F, 3P) in the unit of the tracks, ``fun`` the objective, the fit
-        (``nuclear_norm``, ``reprojection_error``, ``max_abs_residual``); ADMM adds ``dual`` and
-        ``duality_gap``.
+        ``x`` the shapes (F, 3P) in the unit of the tracks, ``fun`` the objective and the fit.
 
     Raises
     ------
     ValueError
         For malformed inputs, an unknown method or option, a negative tau, ``method="admm"`` with
         tau > 0, or an infeasible exact fit (ADMM).
-    ImportError
-        ``method="cvxpy"`` without cvxpy installed (``pip install nldr[cvxpy]``).
-    TNHSolveError
-        ``method="cvxpy"``: the conic solver failed or did not reach an optimal status.
+    ImportError, TNHSolveError
+        ``method="cvxpy"`` without cvxpy (``pip install nldr[cvxpy]``), or its conic solver failed.
     """
     name = method.lower() if isinstance(method, str) else method
     if name not in METHODS:
@@ -142,31 +131,21 @@ class Reconstruction(SolverResult):
 
     Attributes
     ----------
-    x : array (F, 3P)
-        Shapes as rows, unit of the tracks (world frame; with estimated cameras, up to the global gauge).
+    x, R : arrays (F, 3P) and (F, 2, 3)
+        Shapes as rows (unit of the tracks; with estimated cameras up to the global gauge) and cameras.
     fun : float
-        The prior's energy at the end: TNH's objective (the nuclear norm for the exact fit, else
-        tau ||X||_* plus the reprojection error); the kernel method's energy (1) at its last rho.
+        The prior's energy at the end: TNH's objective; the kernel method's energy (1) at its last rho.
     status, message, nit, wall_time
-        Those of the solver that ran (``solver``); with a start, ``wall_time`` excludes the start's.
-    R : array (F, 2, 3)
-        Cameras (the given ones when known).
-    prior, loss : str
-    tau : float
-        Trace-norm weight (0.0 for TNH's exact fit).
-    gamma : float
-        RBF inverse squared width (NaN for TNH).
-    delta : float or None
-        Huber threshold (None for the squared loss).
+        Those of the solver that ran (``solver``, with its histories); ``wall_time`` excludes the start's.
+    prior, loss, tau, gamma, delta
+        As run (tau 0.0 for TNH's exact fit, gamma NaN for TNH, delta None for the squared loss).
     reprojection : float
         Sum of squared reprojection errors over the observed points.
     start : Reconstruction or None
         The TNH reconstruction the kernel method started from.
-    solver : SolverResult
-        The underlying solver's result, with its histories.
     other_widths : dict
-        With estimated cameras and the multistart: label -> :class:`Reconstruction` at the other width
-        rules the multistart solved along the way (the same call at those widths gives them).
+        Estimated cameras with the multistart: label -> :class:`Reconstruction` at the other width rules
+        it solved along the way (the same call at those widths gives them).
     """
 
     R: np.ndarray
@@ -350,14 +329,7 @@ def _gamma(width, X0) -> float:
 
 def _result(res, W, vis, R, *, wall=None, **fields) -> Reconstruction:
     return Reconstruction(
-        x=res.x,
-        fun=float(res.fun),
-        status=res.status,
-        message=res.message,
-        nit=res.nit,
-        wall_time=res.wall_time if wall is None else wall,
-        R=R,
-        reprojection=reprojection_error(W, vis, R, res.x),
-        solver=res,
+        x=res.x, fun=float(res.fun), status=res.status, message=res.message, nit=res.nit, R=R, solver=res,
+        wall_time=res.wall_time if wall is None else wall, reprojection=reprojection_error(W, vis, R, res.x),
         **fields,
-    )
+    )  # fmt: skip

@@ -147,20 +147,9 @@ class OrthographicReprojection:
 def check_tracks(W2d, mask, *, min_points: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """Validate image tracks and their visibility for the camera estimation.
 
-    Parameters
-    ----------
-    W2d : array, shape (F, 2P)
-        Image tracks as rows; entries of unobserved points are ignored (they may be NaN).
-    mask : bool array, shape (F, P) or None
-        Visibility (None: all observed).
-    min_points : int, default 3
-        Observed points every frame must have (an orthographic camera has 5 degrees of freedom).
-
-    Returns
-    -------
-    W : array, shape (F, 2P)
-        The tracks with zeros where unobserved.
-    mask : bool array, shape (F, P)
+    W2d (F, 2P) are the tracks (unobserved entries ignored, may be NaN), ``mask`` (F, P) or None (all
+    observed); every frame needs ``min_points`` observed points (an orthographic camera has 5 degrees of
+    freedom). Returns the tracks with zeros where unobserved and the bool mask.
     """
     W2d = as_float_matrix(W2d, "W2d", allow_nan=True)
     if W2d.shape[1] % 2:
@@ -200,17 +189,8 @@ def visibility_weights(mask: np.ndarray) -> np.ndarray | None:
 
 
 def masked_residual(W3: np.ndarray, m3: np.ndarray | None, R: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """mask o (W - R S) per frame, shape (F, 2, P), with ``m3`` from :func:`visibility_weights`.
-
-    Parameters
-    ----------
-    W3 : array, shape (F, 2, P)
-        Tracks, zero where unobserved.
-    m3 : array, shape (F, 1, P) or None
-        :func:`visibility_weights` of the mask (None: all observed).
-    R : array, shape (F, 2, 3)
-    S : array, shape (F, 3, P)
-    """
+    """mask o (W - R S) per frame (F, 2, P) from the tracks W3 (F, 2, P) (zero where unobserved), ``m3``
+    from :func:`visibility_weights` (None: all observed), cameras R (F, 2, 3) and shapes S (F, 3, P)."""
     E = W3 - R @ S
     if m3 is not None:
         E *= m3
@@ -221,15 +201,8 @@ def reprojection_error(W2d, mask, R, X) -> float:
     """Sum over the points (f, j) where ``mask`` is True of ``||w_f(x_j) - R_f s_f(x_j)||^2`` (both
     image coordinates; unit of the tracks squared): the data term with cameras R.
 
-    Parameters
-    ----------
-    W2d : array, shape (F, 2P)
-        Image tracks as rows (finite where ``mask`` is True).
-    mask : bool array, shape (F, P) or None (all points)
-    R : array, shape (F, 2, 3)
-        Cameras (known or estimated).
-    X : array, shape (F, 3P)
-        Shapes as rows.
+    Tracks W2d (F, 2P) (finite where ``mask`` is True), ``mask`` (F, P) or None (all points), cameras R
+    (F, 2, 3) known or estimated, shapes X (F, 3P).
     """
     W, mask = check_tracks(W2d, mask, min_points=0)
     F, P = mask.shape

@@ -30,15 +30,7 @@ __all__ = [
 def nearest_orthonormal_rows(A) -> np.ndarray:
     """Per frame, the 2x3 matrix with orthonormal rows nearest in Frobenius norm (polar factor U V^T).
 
-    Parameters
-    ----------
-    A : array, shape (F, 2, 3)
-
-    Returns
-    -------
-    R : array, shape (F, 2, 3)
-        R_f R_f^T = I_2.
-    """
+    A (F, 2, 3) -> R (F, 2, 3) with R_f R_f^T = I_2."""
     A = check_cameras(A, name="A")
     U, _, Vt = np.linalg.svd(A, full_matrices=False)
     return U @ Vt
@@ -57,23 +49,18 @@ def complete_rotations(R, *, project: bool = True) -> np.ndarray:
     return np.concatenate([R, np.cross(R[:, 0], R[:, 1])[:, None]], axis=1)
 
 
-# H(q), the homogeneous rotation matrix of q = (w, x, y, z) (A = H / |q|^2), entry by entry as quadratic
-# forms q^T E q with E symmetric, so dH/dq = 2 E q. Built from H = [[w2+x2-y2-z2, 2(xy-wz), 2(xz+wy)],
-# [2(xy+wz), w2-x2+y2-z2, 2(yz-wx)], [2(xz-wy), 2(yz+wx), w2-x2-y2+z2]].
-_H_FORMS = np.zeros((3, 3, 4, 4))
-for (_c, _k), _terms in {
-    (0, 0): [(0, 0, 1), (1, 1, 1), (2, 2, -1), (3, 3, -1)],
-    (0, 1): [(1, 2, 1), (2, 1, 1), (0, 3, -1), (3, 0, -1)],
-    (0, 2): [(1, 3, 1), (3, 1, 1), (0, 2, 1), (2, 0, 1)],
-    (1, 0): [(1, 2, 1), (2, 1, 1), (0, 3, 1), (3, 0, 1)],
-    (1, 1): [(0, 0, 1), (1, 1, -1), (2, 2, 1), (3, 3, -1)],
-    (1, 2): [(2, 3, 1), (3, 2, 1), (0, 1, -1), (1, 0, -1)],
-    (2, 0): [(1, 3, 1), (3, 1, 1), (0, 2, -1), (2, 0, -1)],
-    (2, 1): [(2, 3, 1), (3, 2, 1), (0, 1, 1), (1, 0, 1)],
-    (2, 2): [(0, 0, 1), (1, 1, -1), (2, 2, -1), (3, 3, 1)],
-}.items():
-    for _i, _j, _v in _terms:
-        _H_FORMS[_c, _k, _i, _j] = _v
+def _homogeneous(q) -> np.ndarray:
+    """H(q) = |q|^2 A(q) (3, 3) for one quaternion q = (w, x, y, z), by scipy (scalar last there)."""
+    return np.dot(q, q) * Rotation.from_quat(np.r_[q[1:], q[0]]).as_matrix()
+
+
+# Every entry of H(q) is a quadratic form q^T E q with E symmetric (dH/dq = 2 E q); E by polarisation,
+# E_ij = (H(e_i + e_j) - H(e_i - e_j)) / 4, E_ii = H(e_i); its entries are 0 and +-1, so it is rounded.
+_I4 = np.eye(4)
+_H_FORMS = np.round(np.array([
+    [_homogeneous(_I4[i]) if i == j else (_homogeneous(_I4[i] + _I4[j]) - _homogeneous(_I4[i] - _I4[j])) / 4
+     for j in range(4)] for i in range(4)
+]).transpose(2, 3, 0, 1))  # (3, 3, 4, 4): entry (c, k), form (i, j)  # fmt: skip
 _H_FORM_ROWS = _H_FORMS.reshape(36, 4)  # rows (c, k, i): E q for every entry is one (F, 4) x (4, 36) product
 
 
@@ -122,14 +109,8 @@ class CameraFrameVariables:
     the same; only the path of the solver changes (docs/REPRODUCTION.md#table-3-solver). The
     methods take and return arrays of shape (F, 3P), shapes as rows (x_1..x_P, y_1..y_P, z_1..z_P).
 
-    Parameters
-    ----------
-    R : array, shape (F, 2, 3)
-        Orthographic cameras (rows independent).
-    mask : bool array, shape (F, P)
-        True where the point is observed.
-    depth_scale : float > 0
-        Scale of the unheld directions (1: only the rotation).
+    ``R`` (F, 2, 3): orthographic cameras (rows independent); ``mask`` (F, P): True where observed;
+    ``depth_scale`` > 0: the scale of the unheld directions (1: only the rotation).
     """
 
     def __init__(self, R, mask, depth_scale: float):

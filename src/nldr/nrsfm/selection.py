@@ -172,24 +172,19 @@ class NRSfMSelection:
     tau_ : float
         The chosen weight: TNH's (unit of the tracks squared) or the kernel method's trace-norm weight.
     width_multiple_, gamma_ : float
-        :func:`select_kernel`: the chosen multiple of the width rule's gamma, and that multiple times the
-        rule on the refit's start shapes (1 / unit of the tracks squared); NaN after :func:`select_tnh_tau`.
+        :func:`select_kernel`: the chosen multiple of the width rule, and the refit's gamma (1 / unit of
+        the tracks squared); NaN after :func:`select_tnh_tau`.
     cv_results_ : DataFrame
-        One row per candidate (TNH by tau; kernel by width multiple, then tau): its values (``tau``,
-        ``width_multiple``), ``mean_test_error`` (mean over folds of the mean squared reprojection
-        error of the hidden points, unit of the tracks squared), ``std_test_error`` (sample sd over
-        folds), ``fit_time`` (mean seconds of one fold solve; warm-started candidates are cheaper); the
-        kernel's also ``max_move`` (largest relative change of the start shapes over the folds),
-        ``active`` (``max_move >= min_move``) and, with ``rule="reference"``, ``mean_diff_reference``
-        and ``se_diff_reference`` (mean and standard error over folds of the score minus the
-        reference's score in the same fold).
+        One row per candidate (TNH by tau; kernel by width multiple, then tau): ``tau``,
+        ``width_multiple``, ``mean_test_error`` and ``std_test_error`` (mean and sample sd over folds of
+        the hidden points' mean squared reprojection error, unit of the tracks squared), ``fit_time``
+        (mean seconds of a fold solve); the kernel's also ``max_move`` (largest relative change of the
+        start shapes over the folds), ``active`` and, with ``rule="reference"``, ``mean_diff_reference``
+        and ``se_diff_reference`` (paired differences from the reference in the same fold).
     fold_scores_ : DataFrame, shape (n_folds, n_candidates)
-        Hold-out score of every candidate (columns as the rows of ``cv_results_``) in every fold (rows):
-        the paired values behind ``rule="reference"``.
-    result_ : Reconstruction
-        The refit on every observed point at the chosen values (:func:`~nldr.nrsfm.reconstruct`).
-    folds_ : list of bool arrays, shape (F, P)
-        The hidden points of each fold.
+        The score of every candidate (columns as the rows of ``cv_results_``) in every fold.
+    result_, folds_ : Reconstruction, list of bool arrays (F, P)
+        The refit on every observed point at the chosen values; the hidden points of each fold.
     start_ : (R, X)
         Cameras (F, 2, 3) and shapes (F, 3P) the refit started from (TNH: the rigid cameras, no shapes).
     options_ : dict
@@ -253,10 +248,8 @@ def select_tnh_tau(
 
     Parameters
     ----------
-    W2d : array, shape (F, 2P)
-        Centred image tracks as rows (entries of unobserved points are ignored).
-    mask : bool array, shape (F, P), optional
-        Visibility; default all observed.
+    W2d, mask : arrays (F, 2P) and (F, P), optional
+        Centred tracks and visibility (:mod:`nldr.nrsfm.layout`; default all observed).
     taus : sequence of float > 0, optional
         Candidates (unit of the tracks squared); default :data:`DEFAULT_TNH_TAUS`.
     n_folds, holdout_fraction, random_state
@@ -325,10 +318,8 @@ def select_kernel(
 
     Parameters
     ----------
-    W2d : array, shape (F, 2P)
-        Centred image tracks as rows.
-    mask : bool array, shape (F, P), optional
-        Visibility; default all observed. With ``tnh``, must be the mask it was selected on.
+    W2d, mask
+        As in :func:`select_tnh_tau`; with ``tnh``, the mask it was selected on.
     R : array, shape (F, 2, 3), optional
         Known cameras. Each fold (and the refit) starts from the exact-fit TNH of its training points
         (:func:`~nldr.nrsfm.trace_norm_heuristic` with ``tnh_options``).
@@ -337,14 +328,12 @@ def select_kernel(
         at the selected tau; every fold solve and the refit (from ``tnh.result_``) optimise cameras and
         shapes jointly (:func:`~nldr.nrsfm.reconstruct`, the fold solves from one start each, the refit
         with ``camera_options``, e.g. ``multistart``).
-    taus : sequence of float > 0, optional
-        Default :data:`DEFAULT_KERNEL_TAUS`.
-    width_multiples : sequence of float > 0, optional
-        Default :data:`WIDTH_MULTIPLES`.
+    taus, width_multiples : sequences of float > 0, optional
+        Defaults :data:`DEFAULT_KERNEL_TAUS` and :data:`WIDTH_MULTIPLES`.
     width_rule : {"d_med", "d_max"}, default "d_med"
         The paper's rule the multiples scale (:data:`~nldr.nrsfm.reconstruct.WIDTH_RULES`).
-    n_folds, holdout_fraction, random_state
-        Folds of :func:`visibility_folds` (known cameras only; ``tnh`` brings its own).
+    n_folds, holdout_fraction, random_state, n_jobs
+        As in :func:`select_tnh_tau` (the folds with known cameras only; ``tnh`` brings its own).
     warm_start : bool, default True
         Solve each (fold, width) along tau, smallest first, warm-starting with the last penalty stage.
     rule : {"reference", "min"}, default "reference"
@@ -367,11 +356,8 @@ def select_kernel(
     camera_options : mapping, optional
         With ``tnh``: options of the refit alone (e.g. ``multistart``).
     depth_scale : float > 0, optional
-        With ``R``, run the fold solves and the refit in :class:`~nldr.nrsfm.CameraFrameVariables`
-        with this scale: the same minimisers, far fewer L-BFGS iterations
-        (docs/REPRODUCTION.md#table-3-solver). Default: L-BFGS on the shapes themselves.
-    n_jobs : int >= 1
-        Processes over the folds.
+        With ``R``, the fold solves and the refit in :class:`~nldr.nrsfm.CameraFrameVariables` with this
+        scale (the same minimisers, far fewer L-BFGS iterations; docs/REPRODUCTION.md#table-3-solver).
     **regularizer_options
         Passed to :func:`~nldr.regularizer.minimize_regularized` (``rho0, rho_growth, rho_max, center,
         max_inner, ...``) in the folds and the refit.

@@ -1,31 +1,23 @@
 """The trace-norm heuristic's shared pieces: its result type, singular value thresholding, and the
 penalised TNH by accelerated proximal gradient (FISTA).
 
-TNH (the paper's eq. 12, known cameras) for shapes as rows X (F, 3P), tracks W (F, 2P), cameras R
-(F, 2, 3) and visibility Z (F, P), penalised (tau > 0) or in its exact-fit limit (tau -> 0)::
+TNH (the paper's eq. 12, known cameras; layouts as in :mod:`nldr.nrsfm.layout`), penalised (tau > 0) or
+in its exact-fit limit (tau -> 0)::
 
     min_X  tau ||X||_*  +  sum_{f,j} Z_fj ||w_f(x_j) - R_f s_f(x_j)||^2
     min_X  ||X||_*   subject to   R_f s_f(x_j) = w_f(x_j)  for every observed (f, j)
 
-The entry point is :func:`~nldr.nrsfm.trace_norm_heuristic`; its backends are the ADMM of
-:mod:`nldr.nrsfm.admm` (the exact fit, and the robust TNH) and :mod:`nldr.nrsfm.cvxpy_tnh` (the conic
-reference, either form). :func:`fista_tnh` here, the penalised form by FISTA, is the shape step of
-Table 4's camera/shape alternation (:mod:`nldr.nrsfm.camera_refinement`).
+The entry point is :func:`~nldr.nrsfm.trace_norm_heuristic` (backends :mod:`nldr.nrsfm.admm` and
+:mod:`nldr.nrsfm.cvxpy_tnh`); :func:`fista_tnh` is the shape step of Table 4's camera/shape alternation
+(:mod:`nldr.nrsfm.camera_refinement`).
 
-Singular value thresholding, ``prox_{t ||.||_*}(Y) = U (S - t)_+ V^T``, comes two ways:
-:func:`soft_threshold_singular_values` by a thin SVD (the accurate one), and
-:func:`soft_threshold_singular_values_gram` through the eigendecomposition of the small Gram matrix of
-Y's short side, the default of every solver here. Maintenance note (the Gram version): eigenvalues of
-a Gram matrix carry an absolute error of order eps s_max^2, so the singular values are recomputed as
-the row norms of U^T Y (Rayleigh-Ritz), accurate to eps ||Y|| like an SVD's; what stays less accurate is
-the orthogonality of the right singular vectors of components near the threshold, O(eps s_max^2 / t^2),
-so the Gram path is taken only while n eps s_max^2 <= :data:`GRAM_SAFETY` t^2 and the SVD otherwise
-(docs/PERFORMANCE.md, "Scale").
-
-Maintenance note (FISTA's step). The data term has gradient -2 R_f^T (Z_f o (W_f - R_f S_f)) per frame
-and Lipschitz constant 2 max_f ||R_f||_2^2; the step is 1 / L. The momentum restarts whenever the
-objective increases (O'Donoghue & Candes 2015), which keeps the objective monotone. The residual at the
-extrapolated point is the same extrapolation of the last two residuals (it is affine in the shapes).
+Singular value thresholding ``prox_{t ||.||_*}(Y) = U (S - t)_+ V^T`` comes by a thin SVD
+(:func:`soft_threshold_singular_values`) or, the default of every solver here, through the
+eigendecomposition of the Gram matrix of Y's short side (:func:`soft_threshold_singular_values_gram`).
+A Gram eigenvalue carries an absolute error of order eps s_max^2, so the singular values are recomputed
+as the row norms of U^T Y (accurate to eps ||Y||); the right singular vectors of components near the
+threshold lose orthogonality as O(eps s_max^2 / t^2), so the Gram path is taken only while
+n eps s_max^2 <= :data:`GRAM_SAFETY` t^2 (docs/PERFORMANCE.md#scale).
 """
 
 from __future__ import annotations
@@ -61,54 +53,37 @@ class TNHSolveError(RuntimeError):
 
 @dataclass(kw_only=True, repr=False)
 class TNHResult(SolverResult):
-    """Result of a TNH solve (:func:`~nldr.nrsfm.trace_norm_heuristic`), a
+    """Result of a TNH solve (:func:`~nldr.nrsfm.trace_norm_heuristic`, :func:`fista_tnh`), a
     :class:`~nldr.result.SolverResult`.
 
     Attributes
     ----------
     x : array, shape (F, 3P)
-        Estimated shapes as rows, in the unit of the image tracks.
+        Shapes as rows, in the unit of the image tracks.
     fun : float
-        The objective at ``x``: ||X||_* for the exact fit, tau ||X||_* + reprojection error otherwise.
-        ADMM and FISTA evaluate it at ``x``; cvxpy reports the conic solver's optimal value.
-    status : int
-        CONVERGED: the solver met its tolerance (cvxpy: status ``optimal``); MAX_ITER: it reached its
-        iteration cap (ADMM, FISTA); INACCURATE: cvxpy's ``optimal_inaccurate``.
-    message : str
-        Why the solver stopped.
-    nit : int
-        Iterations of the solver (cvxpy: as the conic solver reports them, 0 if it does not).
-    wall_time : float
-        Seconds of wall-clock time (cvxpy: of ``problem.solve``, compilation on a first solve included).
-    method : str
-        ``"admm"``, ``"admm_l1"`` (robust TNH), ``"cvxpy"`` or ``"fista"`` (:func:`fista_tnh`).
-    solver : str
-        ``"ADMM"``, ``"FISTA"`` or the name of the conic solver (``"SCS"``, ``"CLARABEL"``, ...).
+        ||X||_* for the exact fit, else tau ||X||_* + reprojection error (cvxpy: the solver's optimum).
+    status, message, nit, wall_time
+        CONVERGED (cvxpy: ``optimal``), MAX_ITER (ADMM, FISTA) or INACCURATE (cvxpy's
+        ``optimal_inaccurate``); cvxpy's ``nit`` is the conic solver's (0 if unreported) and its
+        ``wall_time`` includes compiling on a first solve.
+    method, solver : str
+        ``"admm"``, ``"admm_l1"`` (robust TNH), ``"cvxpy"`` or ``"fista"``; ``"ADMM"``, ``"FISTA"`` or the
+        conic solver (``"SCS"``, ``"CLARABEL"``, ...).
     tau : float
-        Regularisation strength; 0.0 for the exact-fit form.
-    exact_fit : bool
-        True when solved with equality constraints (the tau -> 0 limit).
-    nuclear_norm : float
-        ||X||_* of the returned X (ADMM, cvxpy: recomputed with an SVD; FISTA: from its last
-        thresholding).
-    reprojection_error : float
-        Sum over observed points of squared reprojection errors of the returned X (unit squared).
-    max_abs_residual : float
-        Largest absolute reprojection residual over observed coordinates (unit of the tracks).
+        Regularisation strength; 0.0 for the exact fit (``exact_fit`` True: equality constraints).
+    nuclear_norm, reprojection_error, max_abs_residual : float
+        ||X||_* (FISTA: from its last thresholding), the sum of squared reprojection errors over the
+        observed points (unit squared) and the largest absolute residual (unit of the tracks).
     options : dict
-        The options the solver ran with (defaults filled in). ADMM adds ``final_beta``, its adapted
-        penalty; cvxpy: the conic solver's options.
-    dual : array or None
-        ADMM only: the exact fit's multiplier Y (F, 3P) of the splitting X = Z (dimensionless; a
-        subgradient of ||.||_* in the row space of the constraints, see :mod:`nldr.nrsfm.admm`); the
-        robust TNH's dual-feasible multiplier of the residuals (F, 2P).
-    duality_gap : float or None
-        ADMM only: ``fun`` minus a certified lower bound on the optimum (unit of the tracks).
+        The solver's options, defaults filled in (ADMM adds ``final_beta``, its adapted penalty).
+    dual, duality_gap : array or None, float or None
+        ADMM only: the exact fit's multiplier Y (F, 3P) of the splitting X = Z, or the robust TNH's
+        dual-feasible multiplier of the residuals (F, 2P) (:mod:`nldr.nrsfm.admm`); ``fun`` minus a
+        certified lower bound on the optimum (unit of the tracks).
     solver_time : float or None
-        cvxpy only: seconds inside the conic solver, as it reports them.
+        cvxpy only: seconds inside the conic solver.
     momentum : (array (F, 3, P), float, float) or None
-        :func:`fista_tnh` only: ``(X_before, beta, t)``, the state to continue from (pass it back as
-        ``momentum`` with ``X=x.reshape(F, 3, P)``).
+        :func:`fista_tnh` only: ``(X_before, beta, t)``, the state to continue from.
     """
 
     method: str
@@ -179,54 +154,38 @@ def _lipschitz_step(R: np.ndarray) -> float:
 
 
 def fista_tnh(
-    W3: np.ndarray,
-    m3: np.ndarray | None,
-    R: np.ndarray,
-    X: np.ndarray,
-    x_nuclear: float,
-    tau: float,
-    max_iter: int,
-    tol: float,
-    svt: Callable[[np.ndarray, float], tuple[np.ndarray, float]] = soft_threshold_singular_values_gram,
-    momentum: tuple[np.ndarray, float, float] | None = None,
-) -> TNHResult:
+    W3, m3, R, X, x_nuclear: float, tau: float, max_iter: int, tol: float,
+    svt: Callable = soft_threshold_singular_values_gram, momentum: tuple | None = None,
+) -> TNHResult:  # fmt: skip
     """FISTA with restarts for penalised TNH on validated batched arrays (no checks), warm-startable.
 
-    Minimises ``tau ||X||_* + sum_f ||m_f o (W_f - R_f X_f)||^2`` from ``X``; stops when the relative
-    decrease of the objective in one iteration is below ``tol``, or after ``max_iter`` iterations.
+    Minimises ``tau ||X||_* + sum_f ||m_f o (W_f - R_f X_f)||^2`` from ``X`` with the step 1 / L,
+    L = 2 max_f ||R_f||_2^2 (the data term's Lipschitz constant); the momentum restarts whenever the
+    objective increases (O'Donoghue & Candes 2015), so the objective never increases. Stops when the
+    relative decrease of the objective in one iteration is below ``tol``, or after ``max_iter``.
 
     Parameters
     ----------
-    W3 : array, shape (F, 2, P)
+    W3 : array (F, 2, P)
         Tracks, zero where unobserved.
-    m3 : array, shape (F, 1, P) or None
+    m3 : array (F, 1, P) or None
         :func:`~nldr.nrsfm.reprojection.visibility_weights` of the mask (None: all observed).
-    R : array, shape (F, 2, 3)
-        Cameras.
-    X : array, shape (F, 3, P)
-        Start (not modified).
-    x_nuclear : float
-        ||X||_* of the start.
-    tau : float > 0
-        Trace-norm weight, in the unit of the tracks squared.
-    max_iter : int >= 1
-    tol : float > 0
-        Relative objective decrease that stops the loop.
+    R : array (F, 2, 3)
+    X : array (F, 3, P)
+        Start (not modified), with ``x_nuclear`` its ||X||_*.
+    x_nuclear, tau, max_iter, tol : float, float > 0, int >= 1, float > 0
+        tau in the unit of the tracks squared.
     svt : callable, default :func:`soft_threshold_singular_values_gram`
-        ``svt(Y (F, 3P), t) -> (X, nuclear norm)``, singular value soft-thresholding.
+        ``svt(Y (F, 3P), t) -> (X, nuclear norm)``.
     momentum : (array (F, 3, P), float, float), optional
-        ``(X_before, beta, t)``: continue an earlier run (the ``momentum`` of its result, whose last
-        iterate is ``X``) from the extrapolated point X + beta (X - X_before) with its t, instead of
-        from X with t = 1. The first step is then checked by the restart test like any other, so the
-        objective still never increases. Used by the camera/shape alternation, where the cameras, hence
-        the objective, change a little between runs.
+        The ``momentum`` ``(X_before, beta, t)`` of an earlier run whose last iterate is ``X``: start
+        from the extrapolated X + beta (X - X_before) with its t (the camera/shape alternation, whose
+        objective changes a little between runs); the first step passes the restart test like any other.
 
     Returns
     -------
     TNHResult
-        ``x`` the last iterate (F, 3P); ``method="fista"``, ``solver="FISTA"``; ``nuclear_norm`` from
-        the last thresholding; ``status`` CONVERGED when the relative decrease of an iteration fell
-        below ``tol``, MAX_ITER otherwise; ``momentum`` the state to continue from.
+        ``x`` the last iterate (F, 3P), ``method="fista"``, ``momentum`` the state to continue from.
     """
     start = time.perf_counter()
     F, _, P = X.shape
@@ -266,10 +225,7 @@ def fista_tnh(
         carried = (X, beta, t_new)
         X, E_x, x_nuclear, t, f_prev = X_new, E_new, nuclear, t_new, f_new
         if decrease < tol:  # a negative value here is rounding at the optimum (t = 1 steps are monotone)
-            converged, message = (
-                True,
-                f"relative objective decrease {decrease:.2g} < tol after {it} iterations",
-            )
+            converged, message = True, f"relative decrease {decrease:.2g} < tol after {it} iterations"
             break
     reprojection_error = float(np.vdot(E_x, E_x))
     return TNHResult(
