@@ -30,9 +30,9 @@ import time
 
 import numpy as np
 import pandas as pd
-from threadpoolctl import threadpool_limits
 
 from .. import paper as paper_numbers
+from .._threads import single_blas_thread
 from ..nrsfm import e3d, random_visibility_mask, reconstruct, select_kernel, select_tnh_tau, stack_to_rows
 from ..nrsfm.selection import PAPER_KERNEL
 from ..paper import paper_frame
@@ -141,7 +141,7 @@ class SelectionNRSfM(MocapExperiment):
             )
 
         oracle = oracle_grid if settings.get("oracle_grid", False) else None
-        with threadpool_limits(1):
+        with single_blas_thread():
             if protocol == "table3":
                 self._run_table3(W2d, seq.R, mask, t, folds, kernel_grid, record, arrays, oracle)
             else:

@@ -22,13 +22,14 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from threadpoolctl import threadpool_limits
 
 from .. import paper as paper_numbers
+from .._threads import single_blas_thread
 from .._validation import check_count, check_positive
 from ..datasets import load_mocap
 from ..nrsfm import e3d, random_visibility_mask, reconstruct, stack_to_rows
@@ -120,7 +121,7 @@ def _kernel_solve(job, worker: bool = False):
     """One kernel reconstruction -> (result, wall seconds, CPU seconds)."""
     args, options = job
     wall0, cpu0 = time.perf_counter(), time.process_time()
-    with threadpool_limits(1 if worker else None):
+    with single_blas_thread() if worker else nullcontext():  # a pool worker: one thread for all it runs
         res = reconstruct(*args, prior="kernel", **options)
     return res, time.perf_counter() - wall0, time.process_time() - cpu0
 
