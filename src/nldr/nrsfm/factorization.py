@@ -175,7 +175,8 @@ def rigid_factorization(W2d, mask=None, *, max_iter: int = 500, tol: float = 1e-
 def _metric_rows(a, b):
     """Coefficients of a^T Q b in the 6 unknowns (Q00, Q01, Q02, Q11, Q12, Q22) of a symmetric Q."""
     pairs = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
-    return np.stack([a[:, i] * b[:, j] + (a[:, j] * b[:, i] if i != j else 0) for i, j in pairs], axis=1)
+    columns = [a[:, i] * b[:, i] if i == j else a[:, i] * b[:, j] + a[:, j] * b[:, i] for i, j in pairs]
+    return np.stack(columns, axis=1)
 
 
 def metric_upgrade(M, *, refine: bool = True) -> np.ndarray:

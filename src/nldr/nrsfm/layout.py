@@ -79,7 +79,9 @@ def random_visibility_mask(
     return mask.reshape(F, P)
 
 
-def visibility_folds(mask, n_folds: int = 3, random_state=0, *, holdout_fraction: float | None = None):
+def visibility_folds(
+    mask, n_folds: int = 3, random_state=0, *, holdout_fraction: float | None = None
+) -> list[np.ndarray]:
     """Hidden 2D points of the cross-validation folds: disjoint subsets of the observed points.
 
     The observed (frame, point) pairs are shuffled with ``random_state``; fold k hides the k-th chunk

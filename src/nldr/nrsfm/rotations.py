@@ -49,18 +49,23 @@ def complete_rotations(R, *, project: bool = True) -> np.ndarray:
     return np.concatenate([R, np.cross(R[:, 0], R[:, 1])[:, None]], axis=1)
 
 
-def _homogeneous(q) -> np.ndarray:
-    """H(q) = |q|^2 A(q) (3, 3) for one quaternion q = (w, x, y, z), by scipy (scalar last there)."""
-    return np.dot(q, q) * Rotation.from_quat(np.r_[q[1:], q[0]]).as_matrix()
+def _quadratic_forms() -> np.ndarray:
+    """E (3, 3, 4, 4), symmetric in its last two axes, with H(q)_ck = q^T E_ck q for the homogeneous
+    rotation H(q) = |q|^2 A(q) of q = (w, x, y, z) (so dH/dq = 2 E q), by polarisation of scipy's
+    rotation: E_ii = H(e_i), E_ij = (H(e_i + e_j) - H(e_i - e_j)) / 4. The entries are 0 and +-1 (rounded)."""
+
+    def H(q):  # scipy's quaternions are scalar last
+        return np.dot(q, q) * Rotation.from_quat(np.r_[q[1:], q[0]]).as_matrix()
+
+    e = np.eye(4)
+    E = np.empty((3, 3, 4, 4))
+    for i in range(4):
+        for j in range(4):
+            E[:, :, i, j] = H(e[i]) if i == j else (H(e[i] + e[j]) - H(e[i] - e[j])) / 4
+    return np.round(E)
 
 
-# Every entry of H(q) is a quadratic form q^T E q with E symmetric (dH/dq = 2 E q); E by polarisation,
-# E_ij = (H(e_i + e_j) - H(e_i - e_j)) / 4, E_ii = H(e_i); its entries are 0 and +-1, so it is rounded.
-_I4 = np.eye(4)
-_H_FORMS = np.round(np.array([
-    [_homogeneous(_I4[i]) if i == j else (_homogeneous(_I4[i] + _I4[j]) - _homogeneous(_I4[i] - _I4[j])) / 4
-     for j in range(4)] for i in range(4)
-]).transpose(2, 3, 0, 1))  # (3, 3, 4, 4): entry (c, k), form (i, j)  # fmt: skip
+_H_FORMS = _quadratic_forms()
 _H_FORM_ROWS = _H_FORMS.reshape(36, 4)  # rows (c, k, i): E q for every entry is one (F, 4) x (4, 36) product
 
 
