@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from nldr.datasets import load_oil
-from nldr.experiments.table2 import random_mask
+from nldr.experiments._table2 import random_mask
 from nldr.impute import KernelRegularizerImputer
 from nldr.impute import regularizer as module
 from nldr.model_selection import holdout_folds

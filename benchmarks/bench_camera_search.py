@@ -1,11 +1,11 @@
-"""Benchmark: the TNH camera search (:func:`nldr.nrsfm.camera_refinement.tnh_camera_search`) at
+"""Benchmark: the TNH camera search (:func:`nldr.nrsfm._camera_refinement.tnh_camera_search`) at
 Table 4's tau*, per job.
 
 For each Table 4 job (CMU mocap, every 10th frame, 41 points; full data or 50 % of the (frame, point)
 observations hidden by ``random_visibility_mask(F, P, 0.5, seed)``), at the job's tau* read from a
 finished Table 4 run (``--runs``, the TNH row's ``tau``; the oracle's Brent search on e3D), this runs
 the alternation from the rigid-factorisation cameras (what the tau search evaluated at tau*), then
-:func:`~nldr.nrsfm.camera_refinement.tnh_camera_search` from its result. It reports TNH's energy (the
+:func:`~nldr.nrsfm._camera_refinement.tnh_camera_search` from its result. It reports TNH's energy (the
 search's only criterion), e3D and the camera error (ground truth, reported, never used), and the
 CPU seconds of each (``time.process_time``, BLAS on one thread).
 
@@ -28,10 +28,10 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_mocap
-from nldr.nrsfm.camera_refinement import tnh_camera_search, tnh_with_camera_refinement
-from nldr.nrsfm.factorization import initialize_cameras
-from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
-from nldr.nrsfm.metrics import camera_error, e3d
+from nldr.nrsfm._camera_refinement import tnh_camera_search, tnh_with_camera_refinement
+from nldr.nrsfm._factorization import initialize_cameras
+from nldr.nrsfm._layout import random_visibility_mask, stack_to_rows
+from nldr.nrsfm._metrics import camera_error, e3d
 
 OUT = Path("results/benchmarks/camera_search.csv")
 

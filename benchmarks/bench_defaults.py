@@ -1,7 +1,7 @@
 """The imputer's no-argument defaults against the paper's settings and missForest (100 trees, CV).
 
 Protocol: the first ``--rows`` oil-flow training rows, Table 2's masks
-(:func:`nldr.experiments.table2.random_mask`, mask k at p uses seed 2016 + k), CPU seconds by
+(:func:`nldr.experiments._table2.random_mask`, mask k at p uses seed 2016 + k), CPU seconds by
 ``time.process_time``; run with ``OPENBLAS_NUM_THREADS=1`` in the environment (the machine may be
 shared: CPU seconds, not wall time, and compare methods within one session). Per mask:
 
@@ -32,9 +32,10 @@ import numpy as np
 import pandas as pd
 
 from nldr.datasets import load_oil
-from nldr.experiments.table2 import random_mask
+from nldr.experiments._table2 import random_mask
 from nldr.impute import KernelRegularizerImputer
-from nldr.model_selection import HoldoutSearch, missforest_imputer
+from nldr.impute._grids import missforest_imputer
+from nldr.model_selection import HoldoutSearch
 
 METHODS = ("default", "paper", "missForest100")
 

@@ -2,7 +2,7 @@
 
 For each of Table 2's masks (seeds 2016 + k, k < ``--masks``) at missing share ``p``:
 ``KernelRegularizerImputer().fit`` (its hold-out search chooses among the width multiples
-:data:`~nldr.impute.regularizer.TUNE_GAMMA_MULTIPLES` and the taus ``--taus``), then every candidate
+:data:`~nldr.impute._regularizer.TUNE_GAMMA_MULTIPLES` and the taus ``--taus``), then every candidate
 refitted with fixed ``gamma`` and ``tau``. SSE over the whole matrix (Table 2's error). The per-mask
 minimum over the candidates uses the ground truth: an **oracle**, the best any rule on this grid
 could do, not a method. Prints one line per mask and the means; writes nothing.
@@ -17,9 +17,9 @@ import argparse
 import numpy as np
 
 from nldr.datasets import load_oil
-from nldr.experiments.table2 import random_mask
+from nldr.experiments._table2 import random_mask
 from nldr.impute import KernelRegularizerImputer
-from nldr.impute.regularizer import MEDIAN_RULE_MULTIPLE, TUNE_GAMMA_MULTIPLES, TUNE_TAUS
+from nldr.impute._regularizer import MEDIAN_RULE_MULTIPLE, TUNE_GAMMA_MULTIPLES, TUNE_TAUS
 
 
 def main():

@@ -15,7 +15,7 @@ machine may be shared with other jobs (the figures are then upper bounds of an i
 - ``transform``: fit on the 1000 training rows (complete), then complete the first 200 validation rows
   with a share p of their entries hidden (mask seed 2016 + k): SSE on the hidden entries of ours and of
   scikit-learn's ``KNNImputer`` (its defaults, and its ``n_neighbors``/``weights`` chosen by the
-  hold-out search of :func:`nldr.model_selection.baseline_grid` on the training rows with the same
+  hold-out search of :func:`nldr.impute.baseline_grid` on the training rows with the same
   share hidden), and ours' milliseconds per new row.
 
 Usage::
@@ -35,9 +35,9 @@ import numpy as np
 from sklearn.impute import KNNImputer
 
 from nldr.datasets import load_oil, load_oil_rows
-from nldr.experiments.table2 import random_mask
-from nldr.impute import KernelRegularizerImputer
-from nldr.model_selection import HoldoutSearch, baseline_grid
+from nldr.experiments._table2 import random_mask
+from nldr.impute import KernelRegularizerImputer, baseline_grid
+from nldr.model_selection import HoldoutSearch
 
 
 def timed(fn):

@@ -1,19 +1,19 @@
 """Benchmark: Table 4's kernel stage with cameras and shapes optimised jointly, one start or several.
 
 Each case is one Table 4 job (sequence, setting, mask seed): the kernel stage of
-:func:`~nldr.experiments.table4.run_sequence` for both widths from the tuned TNH's cameras and shapes,
+:func:`~nldr.experiments._table4.run_sequence` for both widths from the tuned TNH's cameras and shapes,
 read from that job's output of a finished Table 4 run (``--runs``, default results/runs/table4, the
 ``cameras_0``/``shape_0`` arrays of ``<job>.npz``; the TNH search itself is not rerun). Variants:
 
-* ``scaled``: the scaled L-BFGS of :mod:`~nldr.nrsfm.joint_kernel`, full schedule from the TNH solution;
-* ``after``: ``scaled`` with the multi-start of :func:`~nldr.nrsfm.joint_kernel.joint_kernel_multistart`
+* ``scaled``: the scaled L-BFGS of :mod:`~nldr.nrsfm._joint_kernel`, full schedule from the TNH solution;
+* ``after``: ``scaled`` with the multi-start of :func:`~nldr.nrsfm._joint_kernel.joint_kernel_multistart`
   (Table 4's configuration).
 
 The unscaled L-BFGS the scaling replaced (issue 16's "before") is no longer in the library; its
 numbers stay in docs/PERFORMANCE.md.
 
 CPU seconds by ``time.process_time`` with BLAS on one thread; the paper's energy at rho_max
-(:func:`~nldr.nrsfm.joint_kernel.kernel_energy`) and e3D after one global alignment. ``ref_energy`` and
+(:func:`~nldr.nrsfm._joint_kernel.kernel_energy`) and e3D after one global alignment. ``ref_energy`` and
 ``ref_e3d`` are those of the kernel solutions stored in the run's npz (the code that produced the run).
 
 Usage (from the repository root)::
@@ -36,11 +36,11 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_mocap
-from nldr.experiments.mocap import WIDTHS
+from nldr.experiments._mocap import WIDTHS
 from nldr.nrsfm import reconstruct
-from nldr.nrsfm.joint_kernel import kernel_energy
-from nldr.nrsfm.layout import stack_to_rows
-from nldr.nrsfm.metrics import e3d
+from nldr.nrsfm._joint_kernel import kernel_energy
+from nldr.nrsfm._layout import stack_to_rows
+from nldr.nrsfm._metrics import e3d
 
 OUT = Path("results/benchmarks/joint_kernel.csv")
 VARIANTS = {"scaled": dict(multistart=False), "after": dict(multistart=True)}

@@ -53,8 +53,8 @@ from threadpoolctl import threadpool_limits
 from nldr import paper
 from nldr.datasets import load_mocap
 from nldr.nrsfm import e3d, random_visibility_mask, stack_to_rows, trace_norm_heuristic
-from nldr.nrsfm.reprojection import visibility_weights
-from nldr.nrsfm.tnh import fista_tnh
+from nldr.nrsfm._reprojection import visibility_weights
+from nldr.nrsfm._tnh import fista_tnh
 
 OUT = Path("results/benchmarks/missing_protocol.csv")
 SEQUENCES = ("drink", "pickup", "yoga", "stretch")

@@ -1,7 +1,7 @@
 """Benchmark of hold-out selection of (tau, gamma) on the paper's Table 2 protocol, before and after.
 
 Protocol: the first 100 oil-flow training rows (100 x 12), masks from
-:func:`nldr.experiments.table2.random_mask` (seeds ``--seed0``, +1, ...), mean-imputation start, uncentred
+:func:`nldr.experiments._table2.random_mask` (seeds ``--seed0``, +1, ...), mean-imputation start, uncentred
 kernel, the paper's schedule (rho0 1, growth 10, rho_max 1e4), one BLAS thread, CPU seconds
 (``time.process_time``). Per mask it times one solve at the paper's values (gamma 0.075, tau 0.1) and
 one :class:`nldr.model_selection.HoldoutSearch` of the regularizer per variant on the default grid (9
@@ -36,7 +36,7 @@ from sklearn.base import clone
 from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_oil
-from nldr.experiments.table2 import random_mask
+from nldr.experiments._table2 import random_mask
 from nldr.impute import KernelRegularizerImputer
 from nldr.model_selection import DEFAULT_TAUS, GAMMA_MULTIPLES, HoldoutSearch, median_gamma
 

@@ -1,13 +1,13 @@
 """The regularizer against the imputers people use (issue 16), on Table 2's protocol: SSE and CPU cost.
 
 Protocol: the first ``--rows`` oil-flow training rows, masks from
-:func:`nldr.experiments.table2.random_mask` (mask k at p uses seed 2016 + k, Table 2's masks), one BLAS
+:func:`nldr.experiments._table2.random_mask` (mask k at p uses seed 2016 + k, Table 2's masks), one BLAS
 thread, CPU seconds by ``time.process_time``. Per mask:
 
 - ``Ours``: the regularizer at Table 2's settings (gamma 0.075, tau 0.1, uncentred, rho 1 -> 1e4),
   from mean imputation (Table 2's "Ours" row);
 - each peer with its knob chosen by :class:`nldr.model_selection.HoldoutSearch` on 5 hold-out folds of
-  the observed entries (seed = the mask's seed) over :func:`nldr.model_selection.baseline_grid`, then
+  the observed entries (seed = the mask's seed) over :func:`nldr.impute.baseline_grid`, then
   refitted on every observed entry; IterativeImputer has no knob and is fitted once.
 
 ``cpu`` is the whole method (CV and refit), ``cpu_fit`` one fit at the chosen knob (the refit).
@@ -32,9 +32,9 @@ from sklearn.base import clone
 from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_oil
-from nldr.experiments.table2 import random_mask
-from nldr.impute import KernelRegularizerImputer
-from nldr.model_selection import HoldoutSearch, baseline_grid
+from nldr.experiments._table2 import random_mask
+from nldr.impute import KernelRegularizerImputer, baseline_grid
+from nldr.model_selection import HoldoutSearch
 
 #: Table 2's Ours, the paper's settings written out
 OURS = KernelRegularizerImputer(standardize=False, gamma=0.075, tau=0.1, center=False, method="exact")

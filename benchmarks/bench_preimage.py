@@ -21,7 +21,7 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_oil
-from nldr.experiments.table2 import random_mask
+from nldr.experiments._table2 import random_mask
 from nldr.robust_kpca import RobustKernelPCA
 
 SETTINGS = [

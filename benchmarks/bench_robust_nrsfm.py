@@ -16,7 +16,7 @@ direction times 3-6 standard deviations of the tracks (a gross tracking error), 
 
 A robust TNH (Huber or L1 loss with the nuclear norm) is not here: with the L1-limit delta its data
 force is at most 2 delta, so its tau must scale with delta and proximal gradient crawls; it needs an
-ADMM of its own (the exact-fit ADMM of :mod:`nldr.nrsfm.admm` with an l1 residual block).
+ADMM of its own (the exact-fit ADMM of :mod:`nldr.nrsfm._admm` with an l1 residual block).
 
 Metric: e3D against the ground truth (:func:`nldr.nrsfm.e3d`). CPU seconds with BLAS on one thread.
 

@@ -2,7 +2,7 @@
 
 Protocol (Table 2's, on more rows): the first n rows of the oil-flow data, the training file, then for
 n > 1000 the validation and test files appended (3000 rows = all three files); mask
-:func:`nldr.experiments.table2.random_mask` (seed 2016 + k); mean-imputation start; masked least
+:func:`nldr.experiments._table2.random_mask` (seed 2016 + k); mean-imputation start; masked least
 squares; gamma 0.075, tau 0.1, uncentred; schedule rho0 = 1, growth 10, rho_max = 1e4. CPU seconds
 with ``time.process_time`` and BLAS pinned to one thread (threadpoolctl).
 
@@ -34,10 +34,10 @@ import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
-from nldr.baselines import mean_impute
+from nldr._baselines import mean_impute
 from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import load_oil_rows
-from nldr.experiments.table2 import random_mask
+from nldr.experiments._table2 import random_mask
 from nldr.regularizer import minimize_regularized
 
 GAMMA, TAU = 0.075, 0.1

@@ -2,7 +2,7 @@
 
 Protocol (Table 2's on more rows, as benchmarks/bench_scale.py): the first n rows of the training,
 then validation, then test files (n = 3000: all three); p = 0.25 by default; mask k uses seed 2016 + k
-(:func:`nldr.experiments.table2.random_mask`); one BLAS thread; CPU seconds by ``time.process_time``.
+(:func:`nldr.experiments._table2.random_mask`); one BLAS thread; CPU seconds by ``time.process_time``.
 Methods (``--methods``):
 
 - ``Ours``: the exact regularizer at Table 2's settings (gamma 0.075, tau 0.1, uncentred,
@@ -10,7 +10,7 @@ Methods (``--methods``):
 - ``Ours (Nystroem m)``: the same with ``method="nystroem"``, ``options={"landmarks": m}``
   (``--landmarks``, seed 0), the opt-in approximation of the kernel;
 - the peers with their knob chosen by 3-fold hold-out CV on the observed entries
-  (:class:`nldr.model_selection.HoldoutSearch` over :func:`~nldr.model_selection.baseline_grid`, Table
+  (:class:`nldr.model_selection.HoldoutSearch` over :func:`~nldr.impute.baseline_grid`, Table
   2's rows; ``cpu`` counts CV and refit);
 - ``mean`` and ``PPCA`` (q = 9) for reference.
 
@@ -34,11 +34,12 @@ import pandas as pd
 from sklearn.base import clone
 from threadpoolctl import threadpool_limits
 
-from nldr.baselines import mean_impute, ppca_impute
+from nldr._baselines import mean_impute, ppca_impute
 from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import load_oil_rows
-from nldr.experiments.table2 import PEERS, random_mask
-from nldr.model_selection import HoldoutSearch, baseline_grid
+from nldr.experiments._table2 import PEERS, random_mask
+from nldr.impute import baseline_grid
+from nldr.model_selection import HoldoutSearch
 from nldr.regularizer import minimize_regularized
 
 OURS = {"gamma": 0.075, "tau": 0.1, "center": False, "rho0": 1.0, "rho_growth": 10.0, "rho_max": 1e4}

@@ -26,13 +26,13 @@ import numpy as np
 import pandas as pd
 from threadpoolctl import threadpool_limits
 
-from nldr.baselines import mean_impute
+from nldr._baselines import mean_impute
 from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import load_mocap, load_oil
-from nldr.experiments.mocap import WIDTHS
-from nldr.experiments.table2 import random_mask
+from nldr.experiments._mocap import WIDTHS
+from nldr.experiments._table2 import random_mask
 from nldr.nrsfm import OrthographicReprojection, trace_norm_heuristic
-from nldr.nrsfm.layout import stack_to_rows
+from nldr.nrsfm._layout import stack_to_rows
 from nldr.reference.regularizer import pre_image_step
 from nldr.regularizer import minimize_regularized, optimal_kernel_factor, reduced_energy
 

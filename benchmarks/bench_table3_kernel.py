@@ -34,7 +34,7 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_mocap
-from nldr.experiments.mocap import WIDTHS
+from nldr.experiments._mocap import WIDTHS
 from nldr.nrsfm import (
     CameraFrameVariables,
     OrthographicReprojection,

@@ -1,8 +1,8 @@
 """Benchmark: one evaluation of Table 4's TNH with estimated cameras, before and after the speed-up.
 
-Each case runs :func:`~nldr.nrsfm.camera_refinement.tnh_with_camera_refinement` once, as the tau search
-of :func:`~nldr.experiments.table4.run_sequence` does for every tau it tries: CMU mocap, every 10th
-frame, 41 points, cameras from :func:`~nldr.nrsfm.factorization.initialize_cameras`, full data or 50 % of
+Each case runs :func:`~nldr.nrsfm._camera_refinement.tnh_with_camera_refinement` once, as the tau search
+of :func:`~nldr.experiments._table4.run_sequence` does for every tau it tries: CMU mocap, every 10th
+frame, 41 points, cameras from :func:`~nldr.nrsfm._factorization.initialize_cameras`, full data or 50 % of
 the (frame, point) observations hidden (``random_visibility_mask(F, P, 0.5, 2016)``), default
 tolerances (joint energy, 1e-8 over 10 outer iterations); e3D after one global orthogonal alignment.
 
@@ -40,10 +40,10 @@ import pandas as pd
 from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_mocap
-from nldr.nrsfm.camera_refinement import tnh_with_camera_refinement
-from nldr.nrsfm.factorization import initialize_cameras
-from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
-from nldr.nrsfm.metrics import e3d
+from nldr.nrsfm._camera_refinement import tnh_with_camera_refinement
+from nldr.nrsfm._factorization import initialize_cameras
+from nldr.nrsfm._layout import random_visibility_mask, stack_to_rows
+from nldr.nrsfm._metrics import e3d
 from nldr.reference.nrsfm import tnh_with_camera_refinement_reference
 
 OUT = Path("results/benchmarks/table4_tnh.csv")
@@ -174,7 +174,7 @@ def main(argv=None):
                 f"{table['after_seconds'].sum():.1f} s; largest |e3D(after) - e3D(reference)| {gap:.1e}"
             )
         if args.run_sequence:
-            from nldr.experiments.table4 import run_sequence
+            from nldr.experiments._table4 import run_sequence
 
             seq = load_mocap("pickup", args.data_dir).subsample(10)
             run, seconds = timed(lambda: run_sequence(seq, missing_fraction=0.0, seed=2016))

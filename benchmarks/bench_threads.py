@@ -53,7 +53,7 @@ import numpy as np
 setting, n, repeats = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 from threadpoolctl import threadpool_info, threadpool_limits
 from nldr.datasets import load_oil_rows
-from nldr.experiments.table2 import random_mask
+from nldr.experiments._table2 import random_mask
 from nldr.impute import KernelRegularizerImputer
 from nldr import _threads
 

@@ -3,7 +3,7 @@
 The protocol of the paper's Table 3 (linear columns): every 10th frame from the first, 41 points,
 original units (the stored copies are multiplied back by ``scale``), ground-truth cameras ``Rs``;
 TNH in its exact-fit form (the paper's tau = 1e-7) through cvxpy's conic solvers
-(``trace_norm_heuristic(..., method="cvxpy")``); e3D as in :mod:`nldr.nrsfm.metrics`; full data
+(``trace_norm_heuristic(..., method="cvxpy")``); e3D as in :mod:`nldr.nrsfm._metrics`; full data
 and 50% of the (frame, point) observations removed at random (seeded).
 
 Usage (from the repository root)::
@@ -28,8 +28,8 @@ from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_mocap
 from nldr.nrsfm import trace_norm_heuristic
-from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
-from nldr.nrsfm.metrics import e3d
+from nldr.nrsfm._layout import random_visibility_mask, stack_to_rows
+from nldr.nrsfm._metrics import e3d
 
 # Paper, Table 3, "Linear" (TNH) columns: no missing data, 50% missing data.
 PAPER_TNH = {

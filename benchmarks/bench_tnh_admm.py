@@ -1,4 +1,4 @@
-"""Benchmark: exact-fit TNH by ADMM (nldr.nrsfm.admm) against SCS, subsampled and full-length sequences.
+"""Benchmark: exact-fit TNH by ADMM (nldr.nrsfm._admm) against SCS, subsampled and full-length sequences.
 
 Both through ``nldr.nrsfm.trace_norm_heuristic``: ``method="admm"`` and ``method="cvxpy"`` (SCS).
 
@@ -38,8 +38,8 @@ from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_mocap
 from nldr.nrsfm import trace_norm_heuristic
-from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
-from nldr.nrsfm.metrics import e3d
+from nldr.nrsfm._layout import random_visibility_mask, stack_to_rows
+from nldr.nrsfm._metrics import e3d
 from nldr.result import STATUS_NAMES
 
 REPO = Path(__file__).resolve().parents[1]

@@ -20,7 +20,7 @@
 # means. Data: oil flow at 100 and 1000 rows, and the sets that ship inside scikit-learn (wine, breast
 # cancer, diabetes, digits; row subsamples drawn with the config's seed). Missingness: MCAR at three
 # rates, MAR (half the columns drive the other half's missingness) and MNAR (large values more likely
-# hidden); `nldr.experiments.missingness` gives each formula.
+# hidden); `nldr.experiments._missingness` gives each formula.
 #
 # Every peer's knob is chosen by hold-out CV on the observed entries of each cell's first mask and
 # reused on its other masks; ground truth only scores. RMSE is over the hidden entries, in units of
@@ -46,7 +46,7 @@ import pandas as pd
 from IPython.display import Image, Markdown, display
 
 from nldr import tables
-from nldr.experiments.benchmark import ranks
+from nldr.experiments._benchmark import ranks
 from nldr.experiments.notebook import locate
 
 nb = locate("benchmark", configfile, workdir, results, table, runs, arrays, settings, data_dir)

@@ -25,7 +25,7 @@
 # - `Ours (LS)`: the regularizer with masked least squares (tau by CV);
 # - `Ours (Huber)`: the regularizer with `nldr.data_terms.MaskedHuber` (tau by CV, delta = 1.345 x the
 #   MAD scale of the least-squares residuals at the same tau);
-# - `RPCA`: principal component pursuit by ADMM (`nldr.baselines.rpca`), lam by CV;
+# - `RPCA`: principal component pursuit by ADMM (`nldr._baselines.rpca`), lam by CV;
 # - `SoftImpute`: its low-rank fit on every entry, lam by CV;
 # - `KNNImputer`: fills missing entries and keeps the observed ones, outliers included.
 #

@@ -19,7 +19,7 @@
 # track, by the robust-completion experiment's rule. Every method sees only the corrupted tracks:
 #
 # - `TNH`: the exact-fit trace-norm heuristic, which reproduces every displaced coordinate;
-# - `TNH (robust)`: tau ||X||_* + the l1 reprojection error (`nldr.nrsfm.admm`, ADMM),
+# - `TNH (robust)`: tau ||X||_* + the l1 reprojection error (`nldr.nrsfm._admm`, ADMM),
 #   tau = factor x sqrt(max(F, 3P));
 # - `Kernel (LS)`: Table 3's kernel method from TNH;
 # - `Kernel (Huber)`: the kernel method with a Huber reprojection term from TNH (robust), delta by the

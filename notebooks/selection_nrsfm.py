@@ -16,7 +16,7 @@
 #
 # The paper fixes the kernel method's τ = 1e-4 and its width (the d_max and d_med rules) by hand, and
 # tunes Table 4's TNH baseline by a search on the 3D error against ground truth, an **oracle** no user
-# has. `nldr.nrsfm.selection` scores a setting by what a user can check: each fold hides a third of
+# has. `nldr.nrsfm._selection` scores a setting by what a user can check: each fold hides a third of
 # the *observed* 2D points (a point in a frame, both coordinates), the method reconstructs from the
 # rest, and the score is the mean squared reprojection error of the hidden points (their 3D points
 # projected by that frame's camera). TNH's τ: the best-scoring one. The kernel method: the paper's

@@ -46,8 +46,8 @@ import pandas as pd
 from IPython.display import Markdown, display
 
 from nldr import tables
+from nldr.experiments._table1 import figure3_curves
 from nldr.experiments.notebook import locate
-from nldr.experiments.table1 import figure3_curves
 from nldr.plotting import figure3
 from nldr.robust_kpca import rank_penalty_threshold, shrink_eigenvalues
 

@@ -57,10 +57,10 @@ import pandas as pd
 from IPython.display import Markdown, display
 
 from nldr import tables
-from nldr.baselines import mean_impute
+from nldr._baselines import mean_impute
 from nldr.datasets import load_oil
+from nldr.experiments._table2 import METHODS, PEER_ROWS, random_mask
 from nldr.experiments.notebook import cached, locate
-from nldr.experiments.table2 import METHODS, PEER_ROWS, random_mask
 from nldr.impute import KernelRegularizerImputer
 
 # the repository (by its Snakefile), the config and this run's files

@@ -47,7 +47,7 @@ from matplotlib import animation
 
 from nldr import tables
 from nldr.experiments import get
-from nldr.experiments.mocap import Reconstructions
+from nldr.experiments._mocap import Reconstructions
 from nldr.experiments.notebook import locate
 from nldr.nrsfm import center_per_frame
 

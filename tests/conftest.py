@@ -56,9 +56,9 @@ def alternate(W2d, mask, R0, shape_step, *, max_outer=20, tol=1e-4, window=1):
     shape step."""
     from types import SimpleNamespace
 
-    from nldr.nrsfm.camera_refinement import camera_lm
-    from nldr.nrsfm.reprojection import check_tracks
-    from nldr.nrsfm.rotations import camera_to_quaternion, nearest_orthonormal_rows
+    from nldr.nrsfm._camera_refinement import camera_lm
+    from nldr.nrsfm._reprojection import check_tracks
+    from nldr.nrsfm._rotations import camera_to_quaternion, nearest_orthonormal_rows
 
     W, mask = check_tracks(W2d, mask)
     F, P = mask.shape

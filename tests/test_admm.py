@@ -10,10 +10,10 @@ import pytest
 from conftest import nuclear_norm, project, synthetic_sequence
 
 from nldr.nrsfm import trace_norm_heuristic
-from nldr.nrsfm.cvxpy_tnh import CvxpyTNH
-from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
-from nldr.nrsfm.metrics import e3d
-from nldr.nrsfm.reprojection import OrthographicReprojection
+from nldr.nrsfm._cvxpy_tnh import CvxpyTNH
+from nldr.nrsfm._layout import random_visibility_mask, stack_to_rows
+from nldr.nrsfm._metrics import e3d
+from nldr.nrsfm._reprojection import OrthographicReprojection
 from nldr.result import CONVERGED, MAX_ITER
 
 # Tolerance used for the synthetic problems. At status CONVERGED the duality gap is <= TOL ||X||_*, so

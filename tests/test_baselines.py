@@ -5,11 +5,11 @@ import pytest
 from scipy.stats import multivariate_normal
 from threadpoolctl import threadpool_limits
 
-from nldr.baselines import mean_impute, nearest_neighbour_impute, pkpca_impute, ppca_impute, rkpca_impute
-from nldr.baselines._lbfgs import outer_loop_outcome
-from nldr.baselines.pkpca import _objective as pkpca_objective
-from nldr.baselines.ppca import _e_step
-from nldr.baselines.rkpca import _energy, _fit_subspace
+from nldr._baselines import mean_impute, nearest_neighbour_impute, pkpca_impute, ppca_impute, rkpca_impute
+from nldr._baselines._lbfgs import outer_loop_outcome
+from nldr._baselines.pkpca import _objective as pkpca_objective
+from nldr._baselines.ppca import _e_step
+from nldr._baselines.rkpca import _energy, _fit_subspace
 from nldr.kernels import center_kernel, d_med_width, rbf_kernel
 from nldr.result import CONVERGED, INACCURATE, MAX_ITER
 
@@ -72,8 +72,8 @@ def test_mean_impute_accepts_zero_one_mask_and_ignores_values_at_missing_entries
 
 
 def test_the_one_observed_standardisation_is_what_the_imputers_and_the_benchmark_use(rng):
-    from nldr.baselines._masked import observed_standardisation
-    from nldr.experiments.benchmark import _standardise
+    from nldr._baselines._masked import observed_standardisation
+    from nldr.experiments._benchmark import _standardise
     from nldr.impute import KernelRegularizerImputer
 
     X = rng.normal(3.0, 2.0, size=(25, 5))

@@ -7,8 +7,8 @@ import pandas as pd
 import pytest
 
 from nldr.experiments import get
-from nldr.experiments.benchmark import METHODS, load_dataset, make_estimators, ranks, summarise
-from nldr.experiments.missingness import (
+from nldr.experiments._benchmark import METHODS, load_dataset, make_estimators, ranks, summarise
+from nldr.experiments._missingness import (
     MIN_OBSERVED_PER_COLUMN,
     draw_mask,
     mar_drivers,

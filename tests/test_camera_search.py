@@ -1,4 +1,4 @@
-"""The data-only camera search of TNH with unknown cameras (nldr.nrsfm.camera_refinement.tnh_camera_search).
+"""The data-only camera search of TNH with unknown cameras (nldr.nrsfm._camera_refinement.tnh_camera_search).
 
 Tolerances. The proposals on a noise-free constant-velocity camera path are exact in exact arithmetic
 (a composition of three rotations), so their bounds absorb rounding only (1e-12 on the entries). The search's
@@ -14,11 +14,11 @@ from conftest import project
 from scipy.spatial.transform import Rotation
 
 from nldr.datasets import load_mocap
-from nldr.nrsfm.camera_refinement import propose_cameras, tnh_camera_search, tnh_with_camera_refinement
-from nldr.nrsfm.factorization import initialize_cameras
-from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
-from nldr.nrsfm.metrics import center_per_frame
-from nldr.nrsfm.reprojection import tnh_energy
+from nldr.nrsfm._camera_refinement import propose_cameras, tnh_camera_search, tnh_with_camera_refinement
+from nldr.nrsfm._factorization import initialize_cameras
+from nldr.nrsfm._layout import random_visibility_mask, stack_to_rows
+from nldr.nrsfm._metrics import center_per_frame
+from nldr.nrsfm._reprojection import tnh_energy
 
 
 def orbit(n_frames, step_deg=20.0, seed=0):

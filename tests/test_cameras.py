@@ -1,6 +1,6 @@
-"""Camera estimation for NRSfM: rigid factorisation and metric upgrade (nldr.nrsfm.factorization),
-quaternions (nldr.nrsfm.rotations), camera LM and camera/shape alternation (nldr.nrsfm.camera_refinement)
-and evaluation up to the global orthogonal gauge (nldr.nrsfm.metrics).
+"""Camera estimation for NRSfM: rigid factorisation and metric upgrade (nldr.nrsfm._factorization),
+quaternions (nldr.nrsfm._rotations), camera LM and camera/shape alternation (nldr.nrsfm._camera_refinement)
+and evaluation up to the global orthogonal gauge (nldr.nrsfm._metrics).
 
 Tolerances. On noise-free data every estimate below is exact in exact arithmetic, so the bounds only have
 to absorb rounding (eps ~ 2.2e-16 times modest condition numbers) or the solvers' own stopping
@@ -18,19 +18,19 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from nldr.datasets import load_mocap
-from nldr.experiments.table4 import tune_tau
-from nldr.nrsfm.camera_refinement import camera_lm, tnh_with_camera_refinement
-from nldr.nrsfm.factorization import initialize_cameras, metric_upgrade, rigid_factorization
-from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
-from nldr.nrsfm.metrics import (
+from nldr.experiments._table4 import tune_tau
+from nldr.nrsfm._camera_refinement import camera_lm, tnh_with_camera_refinement
+from nldr.nrsfm._factorization import initialize_cameras, metric_upgrade, rigid_factorization
+from nldr.nrsfm._layout import random_visibility_mask, stack_to_rows
+from nldr.nrsfm._metrics import (
     camera_error,
     center_per_frame,
     e3d,
     global_camera_alignment,
     procrustes_rotation,
 )
-from nldr.nrsfm.reprojection import OrthographicReprojection, check_tracks, reprojection_error
-from nldr.nrsfm.rotations import camera_to_quaternion, nearest_orthonormal_rows, quaternion_rotation
+from nldr.nrsfm._reprojection import OrthographicReprojection, check_tracks, reprojection_error
+from nldr.nrsfm._rotations import camera_to_quaternion, nearest_orthonormal_rows, quaternion_rotation
 from nldr.result import CONVERGED
 
 # ---------------------------------------------------------------------------------------------------------
@@ -655,7 +655,7 @@ def test_every_nrsfm_solver_result_is_a_solver_result():
     """x, fun, status, message, nit and wall_time everywhere; success means status CONVERGED; the repr
     is one line."""
     from nldr.nrsfm import trace_norm_heuristic
-    from nldr.nrsfm.tnh import fista_tnh
+    from nldr.nrsfm._tnh import fista_tnh
     from nldr.result import STATUS_NAMES, SolverResult
 
     W, R_true, X = deforming_scene(n_frames=8, n_points=9, seed=41)

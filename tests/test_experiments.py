@@ -8,8 +8,8 @@ import pytest
 from protocol import full_config, quick_config
 
 from nldr.experiments import EXPERIMENTS, get, summary_stats
+from nldr.experiments._mocap import Reconstructions, summarise_e3d
 from nldr.experiments.base import SD_DDOF
-from nldr.experiments.mocap import Reconstructions, summarise_e3d
 
 
 def test_summary_stats_is_the_sample_sd_and_nan_for_one_replicate():
@@ -113,7 +113,7 @@ def test_unknown_names_are_reported_with_the_known_ones():
 def test_table2_rows_do_not_depend_on_how_masks_are_grouped_into_jobs(data_dir, monkeypatch):
     """Seven masks as one job each, as groups of three (3 + 3 + 1) and as one job: the same masks,
     seeds and rows (a peer limited to the first masks runs on exactly those)."""
-    import nldr.experiments.table2 as module
+    import nldr.experiments._table2 as module
 
     monkeypatch.setattr(
         module,
@@ -143,7 +143,7 @@ def test_table2_rows_do_not_depend_on_how_masks_are_grouped_into_jobs(data_dir, 
 def test_table2_peers_follow_the_paper_rows_only_on_their_first_masks(data_dir, monkeypatch):
     """The peers add rows after the paper's (knobs by CV), a costly one only on the first masks per p,
     and leave the paper's rows as run_mask returns them (stubbed here: the peers are under test)."""
-    import nldr.experiments.table2 as module
+    import nldr.experiments._table2 as module
 
     paper_rows = pd.DataFrame(
         {

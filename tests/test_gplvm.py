@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from sklearn.impute import SimpleImputer
 
-from nldr.baselines._masked import observed_standardisation
-from nldr.impute.gplvm import GPY_MISSING, GPLVMImputer
-from nldr.model_selection import baseline_grid
+from nldr._baselines._masked import observed_standardisation
+from nldr.impute import baseline_grid
+from nldr.impute._gplvm import GPY_MISSING, GPLVMImputer
 
 pytest.importorskip("GPy", reason="GPy (the peers extra) is part of make setup")
 

@@ -10,7 +10,7 @@ from sklearn.experimental import enable_iterative_imputer  # noqa: F401
 from sklearn.impute import IterativeImputer, KNNImputer, SimpleImputer
 
 from nldr.model_selection import EntryFolds, HoldoutSearch, holdout_folds
-from nldr.model_selection.rules import choose as _choose
+from nldr.model_selection._rules import choose as _choose
 
 
 def data(n=30, d=5, p=0.2, seed=0):

@@ -11,7 +11,7 @@ from sklearn.pipeline import Pipeline
 from sklearn.utils import estimator_checks
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from nldr.baselines import mean_impute
+from nldr._baselines import mean_impute
 from nldr.data_terms import MaskedLeastSquares
 from nldr.impute import (
     KernelRegularizerImputer,
@@ -22,7 +22,7 @@ from nldr.impute import (
     RobustPCAImputer,
     SoftImputer,
 )
-from nldr.impute.regularizer import MEDIAN_RULE_MULTIPLE
+from nldr.impute._regularizer import MEDIAN_RULE_MULTIPLE
 from nldr.regularizer import minimize_regularized
 
 ESTIMATORS = [

@@ -7,7 +7,7 @@ import pytest
 from sklearn.impute import SimpleImputer
 from threadpoolctl import threadpool_limits
 
-from nldr.baselines import (
+from nldr._baselines import (
     mean_impute,
     nearest_neighbour_impute,
     pkpca_impute,
@@ -15,7 +15,7 @@ from nldr.baselines import (
     rkpca_impute,
     soft_impute,
 )
-from nldr.baselines.rpca import rpca_impute
+from nldr._baselines.rpca import rpca_impute
 from nldr.impute import (
     NearestNeighbourImputer,
     PKPCAImputer,

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from test_impute import hide, surface
 
-from nldr.baselines import mean_impute
+from nldr._baselines import mean_impute
 from nldr.impute import KernelRegularizerImputer
 from nldr.impute import regularizer as module
 from nldr.model_selection import holdout_folds
@@ -114,8 +114,8 @@ def test_the_paper_tables_pass_every_knob_the_defaults_would_tune(name, configfi
     from pathlib import Path
 
     from nldr import experiments
+    from nldr.experiments._table2 import paper_methods
     from nldr.experiments.notebook import load_config
-    from nldr.experiments.table2 import paper_methods
 
     config = load_config(Path(__file__).resolve().parents[1], configfile)
     ours = paper_methods(experiments.get(name).settings(config))["Ours"]

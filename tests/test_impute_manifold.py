@@ -1,4 +1,4 @@
-"""RobustKernelPCAImputer and Reconstruction (nldr.impute.manifold): the estimator contract, the
+"""RobustKernelPCAImputer and Reconstruction (nldr.impute._manifold): the estimator contract, the
 completion they wrap reproduced bit for bit, and the warm start a search over the neighbours uses."""
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""The kernel regularizer with cameras and shapes optimised jointly (nldr.nrsfm.joint_kernel).
+"""The kernel regularizer with cameras and shapes optimised jointly (nldr.nrsfm._joint_kernel).
 
 Tolerances. Gradients are checked against central differences with step h = 1e-6: the truncation error
 is O(h^2 |f'''|) ~ 1e-12 and the rounding error O(eps |f| / h) ~ 1e-10 for energies of order one, so a
@@ -15,11 +15,11 @@ from scipy.spatial.transform import Rotation
 
 from nldr.data_terms import Huber
 from nldr.kernels import d_med_width
-from nldr.nrsfm.joint_kernel import joint_value_grad, kernel_energy, solve_joint_kernel
-from nldr.nrsfm.layout import random_visibility_mask
-from nldr.nrsfm.metrics import center_per_frame
-from nldr.nrsfm.reprojection import OrthographicReprojection
-from nldr.nrsfm.rotations import complete_rotations, quaternion_rotation
+from nldr.nrsfm._joint_kernel import joint_value_grad, kernel_energy, solve_joint_kernel
+from nldr.nrsfm._layout import random_visibility_mask
+from nldr.nrsfm._metrics import center_per_frame
+from nldr.nrsfm._reprojection import OrthographicReprojection
+from nldr.nrsfm._rotations import complete_rotations, quaternion_rotation
 from nldr.regularizer import minimize_regularized, reduced_energy
 
 

@@ -14,14 +14,14 @@ from conftest import project, random_rotation
 from scipy.spatial.transform import Rotation
 
 from nldr.kernels import d_max_width, d_med_width
-from nldr.nrsfm.joint_kernel import (
+from nldr.nrsfm._joint_kernel import (
     block_curvature,
     joint_kernel_multistart,
     kernel_energy,
     solve_joint_kernel,
 )
-from nldr.nrsfm.layout import random_visibility_mask
-from nldr.nrsfm.metrics import center_per_frame
+from nldr.nrsfm._layout import random_visibility_mask
+from nldr.nrsfm._metrics import center_per_frame
 
 
 def scene(n_frames=10, n_points=8, seed=0, missing=0.25):

@@ -8,8 +8,8 @@ from conftest import denoising_problem, within_observed_range
 from sklearn.base import BaseEstimator, TransformerMixin
 from threadpoolctl import threadpool_limits
 
+from nldr._baselines import mean_impute
 from nldr._spectral import cubic_threshold
-from nldr.baselines import mean_impute
 from nldr.data_terms import MaskedLeastSquares
 from nldr.model_selection import DEFAULT_TAUS, HoldoutSearch, holdout_folds, median_gamma
 from nldr.regularizer import isolation_safe_rho0, minimize_regularized

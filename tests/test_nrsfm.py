@@ -11,11 +11,11 @@ from conftest import nuclear_norm, project, random_rotation, synthetic_sequence
 
 from nldr.data_terms import DataTerm
 from nldr.nrsfm import TNHSolveError, trace_norm_heuristic
-from nldr.nrsfm.cvxpy_tnh import CvxpyTNH
-from nldr.nrsfm.layout import random_visibility_mask, stack_to_rows
-from nldr.nrsfm.metrics import center_per_frame, e3d, e3d_per_frame, ground_truth_sigma, procrustes_rotation
-from nldr.nrsfm.reprojection import OrthographicReprojection, visibility_weights
-from nldr.nrsfm.tnh import fista_tnh
+from nldr.nrsfm._cvxpy_tnh import CvxpyTNH
+from nldr.nrsfm._layout import random_visibility_mask, stack_to_rows
+from nldr.nrsfm._metrics import center_per_frame, e3d, e3d_per_frame, ground_truth_sigma, procrustes_rotation
+from nldr.nrsfm._reprojection import OrthographicReprojection, visibility_weights
+from nldr.nrsfm._tnh import fista_tnh
 from nldr.result import CONVERGED, MAX_ITER
 
 # ---------------------------------------------------------------------------------------------------------
@@ -324,7 +324,7 @@ def test_tnh_cvxpy_is_optional(monkeypatch):
 
     X, W, R = synthetic_sequence(n_frames=4, n_points=5, seed=17)
     monkeypatch.setitem(sys.modules, "cvxpy", None)  # import cvxpy now raises ImportError
-    monkeypatch.delitem(sys.modules, "nldr.nrsfm.cvxpy_tnh", raising=False)
+    monkeypatch.delitem(sys.modules, "nldr.nrsfm._cvxpy_tnh", raising=False)
     with pytest.raises(ImportError, match=r"pip install nldr\[cvxpy\]"):
         trace_norm_heuristic(W, R, method="cvxpy")
     assert trace_norm_heuristic(W, R).success

@@ -1,4 +1,4 @@
-"""Hold-out selection for NRSfM (nldr.nrsfm.selection): folds of observed 2D points, the hidden
+"""Hold-out selection for NRSfM (nldr.nrsfm._selection): folds of observed 2D points, the hidden
 reprojection score, and the selections of TNH's tau and the kernel method's tau and width, checked
 against the same computations done by hand."""
 
@@ -21,8 +21,8 @@ from nldr.nrsfm import (
     trace_norm_heuristic,
     visibility_folds,
 )
-from nldr.nrsfm.camera_refinement import tnh_with_camera_refinement
-from nldr.nrsfm.rotations import quaternion_rotation
+from nldr.nrsfm._camera_refinement import tnh_with_camera_refinement
+from nldr.nrsfm._rotations import quaternion_rotation
 from nldr.regularizer import minimize_regularized
 
 

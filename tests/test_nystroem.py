@@ -7,8 +7,8 @@ import pytest
 from conftest import denoising_problem, within_observed_range
 from threadpoolctl import threadpool_limits
 
+from nldr._baselines import mean_impute
 from nldr._nystroem import landmark_indices, landmark_map, nystroem_factor, nystroem_value_grad
-from nldr.baselines import mean_impute
 from nldr.data_terms import MaskedLeastSquares
 from nldr.kernels import center_kernel, rbf_kernel
 from nldr.model_selection import median_gamma

@@ -1,13 +1,14 @@
-"""The peers: SoftImpute (nldr.baselines.peers) against its optimality condition and cvxpy; the
-scikit-learn imputers as nldr.model_selection.baseline_grid configures them (synthetic data, fast)."""
+"""The peers: SoftImpute (nldr._baselines.peers) against its optimality condition and cvxpy; the
+scikit-learn imputers as nldr.impute.baseline_grid configures them (synthetic data, fast)."""
 
 import numpy as np
 import pytest
 from sklearn.impute import KNNImputer
 from threadpoolctl import threadpool_limits
 
-from nldr.baselines import mean_impute, singular_value_threshold, soft_impute, soft_impute_objective
-from nldr.model_selection import HoldoutSearch, baseline_grid, iterative_imputer, missforest_imputer
+from nldr._baselines import mean_impute, singular_value_threshold, soft_impute, soft_impute_objective
+from nldr.impute._grids import baseline_grid, iterative_imputer, missforest_imputer
+from nldr.model_selection import HoldoutSearch
 
 
 @pytest.fixture(autouse=True)

@@ -14,8 +14,8 @@ from protocol import QUICK, REPO, full_config, quick_config, quick_results, run_
 from reproducible import compare_runs, output_files
 
 from nldr.experiments import EXPERIMENTS
+from nldr.experiments._table2 import PEER_ROWS
 from nldr.experiments.base import is_measured
-from nldr.experiments.table2 import PEER_ROWS
 from nldr.tables import TABLE_COLUMNS
 
 R = quick_results()  # e.g. results/quick

@@ -6,7 +6,7 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from nldr.experiments.mocap import Reconstructions  # noqa: E402
+from nldr.experiments._mocap import Reconstructions  # noqa: E402
 from nldr.plotting import _frame_numbers, figure1, figure3  # noqa: E402
 
 

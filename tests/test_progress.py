@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from nldr.experiments.table4 import tune_tau
+from nldr.experiments._table4 import tune_tau
 
 
 def test_tune_tau_verbose_prints_every_evaluation_and_changes_nothing(capsys):

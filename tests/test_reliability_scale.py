@@ -10,11 +10,11 @@ import yaml
 from protocol import REPO, SNAKEMAKE, quick_config
 
 import nldr.datasets as datasets
-from nldr.baselines import mean_impute
+from nldr._baselines import mean_impute
 from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import DataError, load_oil, load_oil_rows
+from nldr.experiments._table2 import random_mask
 from nldr.experiments.base import float_counts
-from nldr.experiments.table2 import random_mask
 from nldr.kernels import d_med_width
 from nldr.regularizer import LONG_SOLVE_ROWS, minimize_regularized, penalty_schedule
 from nldr.result import INACCURATE

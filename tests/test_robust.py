@@ -1,5 +1,5 @@
 """Tests of the robust data terms (nldr.data_terms.Huber, MaskedHuber) and of linear Robust PCA
-(nldr.baselines.rpca), from the mathematics: finite differences, the least-squares limit, the kink,
+(nldr._baselines.rpca), from the mathematics: finite differences, the least-squares limit, the kink,
 optimality certificates and cvxpy's optimum."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
-from nldr.baselines.rpca import default_pcp_lambda, pcp_objective, rpca_impute, rpca_pcp
+from nldr._baselines.rpca import default_pcp_lambda, pcp_objective, rpca_impute, rpca_pcp
 from nldr.data_terms import DataTerm, Huber, MaskedHuber, MaskedLeastSquares, huber_loss
-from nldr.experiments.robust import gross_corruption
+from nldr.experiments._robust import gross_corruption
 from nldr.model_selection import median_gamma, robust_scale
 from nldr.nrsfm import OrthographicReprojection
 from nldr.regularizer import minimize_regularized
@@ -274,7 +274,7 @@ def test_rpca_rejects_bad_input():
 
 def test_absolute_fold_score_and_unknown_score():
     from nldr.model_selection import HoldoutSearch
-    from nldr.model_selection.folds import fold_score
+    from nldr.model_selection._folds import fold_score
 
     W = np.zeros((2, 2))
     X_hat = np.array([[1.0, -3.0], [0.5, 0.0]])
@@ -318,7 +318,7 @@ def test_robust_scale_delta_is_the_rule_on_the_least_squares_fits_residuals_of_i
 
 
 def test_a_typo_in_a_huber_search_s_solver_options_is_refused_before_any_solve(monkeypatch):
-    import nldr.impute.regularizer as module
+    import nldr.impute._regularizer as module
     from nldr.impute import KernelRegularizerImputer
     from nldr.model_selection import HoldoutSearch, RobustScaleDelta
 
@@ -344,7 +344,7 @@ def test_a_typo_in_a_huber_search_s_solver_options_is_refused_before_any_solve(m
 def test_the_huber_loss_is_the_masked_huber_solve_and_least_squares_within_delta():
     """loss="huber" solves minimize_regularized with MaskedHuber (same bits as the direct call), and
     with delta above every residual it is the least-squares solve (the two data terms agree)."""
-    from nldr.baselines._masked import mean_fill
+    from nldr._baselines._masked import mean_fill
     from nldr.data_terms import MaskedHuber
     from nldr.impute import KernelRegularizerImputer
     from nldr.regularizer import minimize_regularized

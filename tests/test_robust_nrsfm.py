@@ -9,7 +9,7 @@ from conftest import synthetic_sequence
 
 from nldr.experiments import get
 from nldr.experiments import robust_nrsfm as module
-from nldr.experiments.robust_nrsfm import METHODS, huber_kernel_parameters, robust_tnh_tau, run_displaced
+from nldr.experiments._robust_nrsfm import METHODS, huber_kernel_parameters, robust_tnh_tau, run_displaced
 from nldr.kernels import rbf_kernel
 from nldr.model_selection import robust_scale
 from nldr.nrsfm import OrthographicReprojection

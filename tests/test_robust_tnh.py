@@ -7,9 +7,9 @@ import pytest
 from conftest import synthetic_sequence
 
 from nldr.nrsfm import OrthographicReprojection, trace_norm_heuristic
-from nldr.nrsfm.admm import robust_trace_norm_heuristic
-from nldr.nrsfm.layout import random_visibility_mask
-from nldr.nrsfm.tnh import TNHResult
+from nldr.nrsfm._admm import robust_trace_norm_heuristic
+from nldr.nrsfm._layout import random_visibility_mask
+from nldr.nrsfm._tnh import TNHResult
 from nldr.result import CONVERGED
 
 cp = pytest.importorskip("cvxpy")

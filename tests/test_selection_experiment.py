@@ -1,4 +1,4 @@
-"""The selection experiments (nldr.experiments.selection): the CV row never sees the hidden ground
+"""The selection experiments (nldr.experiments._selection): the CV row never sees the hidden ground
 truth, the oracle row is labelled and is the best grid point, same seed same answer; selection_full's
 jobs and caption."""
 
@@ -11,8 +11,8 @@ from threadpoolctl import threadpool_limits
 
 from nldr.experiments import get
 from nldr.experiments import selection as module
+from nldr.experiments._table2 import random_mask
 from nldr.experiments.base import Job
-from nldr.experiments.table2 import random_mask
 
 N, D, P, SEED = 30, 12, 0.25, 5
 SETTINGS = {

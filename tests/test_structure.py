@@ -78,6 +78,58 @@ def test_no_import_cycle_in_the_library():
             visit(m)
 
 
+def package_of(module: str) -> str:
+    """The top-level unit a module belongs to: ``nldr.impute._linear`` -> ``nldr.impute``; a top-level
+    module (``nldr.kernels``) is its own unit."""
+    return ".".join(module.split(".")[:2])
+
+
+def package_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """The first cycle of a directed graph (depth-first, sorted order), or None."""
+    state, stack = {}, []
+
+    def visit(node):
+        state[node] = "open"
+        stack.append(node)
+        for target in sorted(graph.get(node, ())):
+            if state.get(target) == "open":
+                return stack[stack.index(target) :] + [target]
+            if target not in state and (found := visit(target)):
+                return found
+        stack.pop()
+        state[node] = "done"
+        return None
+
+    for node in sorted(graph):
+        if node not in state and (found := visit(node)):
+            return found
+    return None
+
+
+def package_graph() -> dict[str, set[str]]:
+    """Edges between the library's packages and top-level modules, from imports at any depth (a
+    function-local import is an edge too); a package's edges to its own modules are dropped."""
+    graph: dict[str, set[str]] = {}
+    for m in MODULES:
+        for target, _, _ in imports(m):
+            a, b = package_of(m), package_of(target)
+            if a != b and b != "nldr":
+                graph.setdefault(a, set()).add(b)
+    return graph
+
+
+def test_no_dependency_between_packages_in_both_directions():
+    cycle = package_cycle(package_graph())
+    assert cycle is None, "package cycle: " + " -> ".join(cycle)
+
+
+def test_the_package_cycle_check_finds_a_planted_cycle():
+    graph = {k: set(v) for k, v in package_graph().items()}
+    graph.setdefault("nldr.model_selection", set()).add("nldr.impute")  # the edge a grid import would add
+    assert package_cycle(graph) is not None
+    assert package_cycle({"a": {"b"}, "b": {"c"}}) is None
+
+
 def test_no_private_name_is_imported_across_modules():
     offences = [
         f"{MODULES[m].relative_to(REPO)}:{line} imports {name} from {target}"

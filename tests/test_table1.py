@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from nldr.baselines.kpca import kpca_spectrum, project_points, spectral_kernel_errors, truncated_spectra
-from nldr.experiments.table1 import figure3_curves, run_noise_level, summarise
+from nldr._baselines.kpca import kpca_spectrum, project_points, spectral_kernel_errors, truncated_spectra
+from nldr.experiments._table1 import figure3_curves, run_noise_level, summarise
 from nldr.kernels import center_kernel, rbf_kernel
 
 

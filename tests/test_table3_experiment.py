@@ -7,7 +7,7 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_mocap
-from nldr.experiments.table3 import run_sequence
+from nldr.experiments._table3 import run_sequence
 
 
 def test_width_criteria_in_worker_processes_reproduce_the_serial_run(data_dir):

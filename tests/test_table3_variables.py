@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from nldr.datasets import load_mocap
-from nldr.experiments.table3 import run_sequence
+from nldr.experiments._table3 import run_sequence
 from nldr.nrsfm import CameraFrameVariables, OrthographicReprojection, random_visibility_mask, stack_to_rows
 from nldr.regularizer import minimize_regularized
 

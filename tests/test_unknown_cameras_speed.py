@@ -1,13 +1,13 @@
 """The fast TNH-with-estimated-cameras (Table 4) keeps the results of the first implementation.
 
-Three changes make :func:`~nldr.nrsfm.camera_refinement.tnh_with_camera_refinement` faster, each checked
+Three changes make :func:`~nldr.nrsfm._camera_refinement.tnh_with_camera_refinement` faster, each checked
 here against the slow-but-plain path it replaces:
 
 1. Singular value thresholding through the Gram matrix of the short side
-   (:func:`~nldr.nrsfm.tnh.soft_threshold_singular_values_gram`) instead of a full SVD
-   (:func:`~nldr.nrsfm.tnh.soft_threshold_singular_values`).
+   (:func:`~nldr.nrsfm._tnh.soft_threshold_singular_values_gram`) instead of a full SVD
+   (:func:`~nldr.nrsfm._tnh.soft_threshold_singular_values`).
 2. The camera LM's normal equations from 3x3 and 3x2 summaries of each frame
-   (:func:`~nldr.nrsfm.camera_refinement.lm_normal_equations`) instead of the explicit Jacobian.
+   (:func:`~nldr.nrsfm._camera_refinement.lm_normal_equations`) instead of the explicit Jacobian.
 3. The shape step's FISTA tolerance follows the alternation's progress (loose while the joint energy
    falls fast, the former 1e-12 near convergence) instead of 1e-12 throughout
    (:func:`~nldr.reference.nrsfm.tnh_with_camera_refinement_reference`).
@@ -22,7 +22,7 @@ run stopped by the default test may be from the fixed point. The fast run must l
 that distance of the reference (triangle inequality: both are within about that distance of the fixed
 point). The joint energy is invariant under a global rotation Q of the shapes (cameras R Q^T), and the
 two paths may end at slightly different rotations (0.03 degrees on pickup), so shapes and cameras are
-compared after one global rotation, the gauge of every NRSfM evaluation (:mod:`nldr.nrsfm.metrics`).
+compared after one global rotation, the gauge of every NRSfM evaluation (:mod:`nldr.nrsfm._metrics`).
 """
 
 from __future__ import annotations
@@ -31,12 +31,12 @@ import numpy as np
 import pytest
 from conftest import random_rotation
 
-import nldr.nrsfm.camera_refinement as cr
-from nldr.nrsfm.camera_refinement import lm_normal_equations, tnh_alternation, tnh_with_camera_refinement
-from nldr.nrsfm.factorization import initialize_cameras
-from nldr.nrsfm.metrics import center_per_frame, e3d, procrustes_rotation
-from nldr.nrsfm.rotations import quaternion_rotation
-from nldr.nrsfm.tnh import (
+import nldr.nrsfm._camera_refinement as cr
+from nldr.nrsfm._camera_refinement import lm_normal_equations, tnh_alternation, tnh_with_camera_refinement
+from nldr.nrsfm._factorization import initialize_cameras
+from nldr.nrsfm._metrics import center_per_frame, e3d, procrustes_rotation
+from nldr.nrsfm._rotations import quaternion_rotation
+from nldr.nrsfm._tnh import (
     GRAM_SAFETY,
     fista_tnh,
     soft_threshold_singular_values,

@@ -1,5 +1,5 @@
 """Bookkeeping shared by the hold-out selections (:mod:`nldr.model_selection` for matrix problems,
-:mod:`nldr.nrsfm.selection` for NRSfM): candidate grids, fold scores summarised per candidate, and
+:mod:`nldr.nrsfm._selection` for NRSfM): candidate grids, fold scores summarised per candidate, and
 independent fold solves run in worker processes."""
 
 from __future__ import annotations

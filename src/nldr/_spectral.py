@@ -186,8 +186,8 @@ def shrink_singular_values(Y: np.ndarray, t: float) -> tuple[np.ndarray, np.ndar
     """``U (S - t)_+ V^T`` for ``Y = U S V^T`` (thin SVD), the proximal map of ``t ||.||_*``.
 
     Returns the (m, n) result and its nonzero singular values ``s_i - t > 0`` (descending): their sum
-    is its nuclear norm, their count its rank. Used by TNH (:mod:`nldr.nrsfm.tnh`) and SoftImpute
-    (:mod:`nldr.baselines.peers`).
+    is its nuclear norm, their count its rank. Used by TNH (:mod:`nldr.nrsfm._tnh`) and SoftImpute
+    (:mod:`nldr._baselines.peers`).
     """
     U, s, Vt = np.linalg.svd(Y, full_matrices=False)
     s = s - t

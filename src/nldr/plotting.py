@@ -24,7 +24,7 @@ def figure3(curves: pd.DataFrame):
     Parameters
     ----------
     curves : DataFrame
-        :func:`nldr.experiments.table1.figure3_curves` output: ``noise_std, method`` ("KPCA" or
+        :func:`nldr.experiments._table1.figure3_curves` output: ``noise_std, method`` ("KPCA" or
         "CFS"), ``rank, error, error_min, error_max`` (relative manifold errors, dimensionless).
     """
     import matplotlib.pyplot as plt
@@ -110,7 +110,7 @@ def figure1(
 
     Parameters
     ----------
-    reconstructions : mapping of sequence name -> :class:`nldr.experiments.mocap.Reconstructions`
+    reconstructions : mapping of sequence name -> :class:`nldr.experiments._mocap.Reconstructions`
     bones : mapping of sequence name -> sequence of (i, j) point-index pairs (the skeleton)
     ours : str
         Method drawn as "ours" (falls back to the first non-TNH method).

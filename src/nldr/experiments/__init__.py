@@ -18,21 +18,21 @@ __all__ = ["Experiment", "Job", "JobOutput", "summary_stats", "EXPERIMENTS", "ge
 
 #: name -> (module in this package, class); the paper's tables first, in the paper's order.
 _REGISTRY = {
-    "table1": ("table1", "Table1"),
-    "table2": ("table2", "Table2"),
-    "table3": ("table3", "Table3"),
-    "table4": ("table4", "Table4"),
-    "table2_full": ("table2", "Table2Full"),
-    "table2_all": ("table2", "Table2All"),
-    "table3_full": ("table3", "Table3Full"),
-    "selection": ("selection", "Selection"),
-    "selection_full": ("selection", "SelectionFull"),
-    "selection_nrsfm": ("selection_nrsfm", "SelectionNRSfM"),
-    "robust": ("robust", "Robust"),
-    "robust_nrsfm": ("robust_nrsfm", "RobustNRSfM"),
-    "out_of_sample": ("out_of_sample", "OutOfSample"),
-    "denoising": ("denoising", "Denoising"),
-    "benchmark": ("benchmark", "Benchmark"),
+    "table1": ("_table1", "Table1"),
+    "table2": ("_table2", "Table2"),
+    "table3": ("_table3", "Table3"),
+    "table4": ("_table4", "Table4"),
+    "table2_full": ("_table2", "Table2Full"),
+    "table2_all": ("_table2", "Table2All"),
+    "table3_full": ("_table3", "Table3Full"),
+    "selection": ("_selection", "Selection"),
+    "selection_full": ("_selection", "SelectionFull"),
+    "selection_nrsfm": ("_selection_nrsfm", "SelectionNRSfM"),
+    "robust": ("_robust", "Robust"),
+    "robust_nrsfm": ("_robust_nrsfm", "RobustNRSfM"),
+    "out_of_sample": ("_out_of_sample", "OutOfSample"),
+    "denoising": ("_denoising", "Denoising"),
+    "benchmark": ("_benchmark", "Benchmark"),
 }
 _INSTANCES: dict[str, Experiment] = {}
 

@@ -4,7 +4,7 @@ Each estimator has ``fit``, ``transform`` and ``fit_transform``, works in a ``Pi
 ``clone`` and ``GridSearchCV``, and passes scikit-learn's ``check_estimator``. ``fit_transform(X)``
 is the method's (transductive) answer on X; ``transform`` completes rows never seen against the
 model learnt in ``fit`` (rows seen in ``fit`` get their fitted estimate). The solvers stay functions
-underneath (:mod:`nldr.regularizer`, :mod:`nldr.baselines`); each estimator keeps its solver's
+underneath (:mod:`nldr.regularizer`, :mod:`nldr._baselines`); each estimator keeps its solver's
 result object as ``result_`` where there is one.
 
 - :class:`KernelRegularizerImputer`: the paper's method, the non-linear dimensionality regularizer.
@@ -20,11 +20,12 @@ The mean baseline is scikit-learn's ``SimpleImputer``; ``KNNImputer`` and ``Iter
 scikit-learn's, used as they are.
 """
 
-from .kernel_pca import PKPCAImputer, RKPCAImputer
-from .linear import PPCAImputer, RobustPCAImputer, SoftImputer
-from .manifold import Reconstruction, RobustKernelPCAImputer
-from .neighbours import NearestNeighbourImputer
-from .regularizer import KernelRegularizerImputer
+from ._grids import baseline_grid
+from ._kernel_pca import PKPCAImputer, RKPCAImputer
+from ._linear import PPCAImputer, RobustPCAImputer, SoftImputer
+from ._manifold import Reconstruction, RobustKernelPCAImputer
+from ._neighbours import NearestNeighbourImputer
+from ._regularizer import KernelRegularizerImputer
 
 __all__ = [
     "KernelRegularizerImputer",
@@ -36,4 +37,5 @@ __all__ = [
     "SoftImputer",
     "RobustPCAImputer",
     "Reconstruction",
+    "baseline_grid",
 ]

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels import center_kernel, rbf_kernel
+from ..model_selection import HoldoutSearch
 from ..preimage import Subspace
 
 __all__ = ["NoComponentsError", "regularizer_subspace", "row_folds", "search_transform_knobs"]
@@ -66,8 +67,6 @@ def search_transform_knobs(estimator, X: np.ndarray, candidates, folds, verbose:
     Returns ``({candidate: mean error over the folds}, chosen candidate)`` (the smallest mean; ties:
     the first candidate), or None when a fold's manifold has no component to complete rows against.
     """
-    from ..model_selection.search import HoldoutSearch  # the search's folds import the imputers
-
     grid = [{"n_neighbors": [int(k)], "starts": [str(s)]} for k, s in candidates]
     search = HoldoutSearch(estimator, grid, folds=folds, path="n_neighbors", refit=False, verbose=verbose)
     try:

@@ -60,10 +60,9 @@ which must hide entries, see the two about equal and every rule picks the wide o
 (p = 0.1) of the observed entries did not bring the choice closer to that grid point.
 """
 
-from .folds import DEFAULT_TAUS, GAMMA_MULTIPLES, holdout_folds, median_gamma
-from .imputers import BASELINES, baseline_grid, iterative_imputer, missforest_imputer
-from .robust import HUBER_EFFICIENCY, RobustScaleDelta, robust_scale
-from .search import EntryFolds, HoldoutSearch
+from ._folds import DEFAULT_TAUS, GAMMA_MULTIPLES, holdout_folds, median_gamma
+from ._robust import HUBER_EFFICIENCY, RobustScaleDelta, robust_scale
+from ._search import EntryFolds, HoldoutSearch
 
 __all__ = [
     "HoldoutSearch",
@@ -72,10 +71,6 @@ __all__ = [
     "GAMMA_MULTIPLES",
     "median_gamma",
     "holdout_folds",
-    "BASELINES",
-    "baseline_grid",
-    "iterative_imputer",
-    "missforest_imputer",
     "HUBER_EFFICIENCY",
     "RobustScaleDelta",
     "robust_scale",

@@ -4,13 +4,13 @@
 kernel regularizer, squared or robust loss (:func:`trace_norm_heuristic`: TNH with known cameras and a
 choice of solver). Energies: :func:`reprojection_error`, :func:`tnh_energy`, :func:`kernel_energy`;
 evaluation up to the global gauge: :func:`e3d`, :func:`camera_error`; parameters from the tracks alone:
-:func:`select_tnh_tau`, :func:`select_kernel`. Layouts: :mod:`nldr.nrsfm.layout`.
+:func:`select_tnh_tau`, :func:`select_kernel`. Layouts: :mod:`nldr.nrsfm._layout`.
 """
 
-from .factorization import initialize_cameras
-from .joint_kernel import kernel_energy
-from .layout import random_visibility_mask, stack_to_rows, visibility_folds
-from .metrics import (
+from ._factorization import initialize_cameras
+from ._joint_kernel import kernel_energy
+from ._layout import random_visibility_mask, stack_to_rows, visibility_folds
+from ._metrics import (
     camera_error,
     center_per_frame,
     e3d,
@@ -19,11 +19,11 @@ from .metrics import (
     ground_truth_sigma,
     procrustes_rotation,
 )
-from .reconstruct import Reconstruction, reconstruct, trace_norm_heuristic
-from .reprojection import OrthographicReprojection, reprojection_error, tnh_energy
-from .rotations import CameraFrameVariables
-from .selection import NRSfMSelection, select_kernel, select_tnh_tau
-from .tnh import TNHResult, TNHSolveError
+from ._reconstruct import Reconstruction, reconstruct, trace_norm_heuristic
+from ._reprojection import OrthographicReprojection, reprojection_error, tnh_energy
+from ._rotations import CameraFrameVariables
+from ._selection import NRSfMSelection, select_kernel, select_tnh_tau
+from ._tnh import TNHResult, TNHSolveError
 
 __all__ = [
     "reconstruct",

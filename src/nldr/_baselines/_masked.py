@@ -1,0 +1,40 @@
+"""Partially observed matrices: the mean fill and the standardisation shared by the imputers.
+
+The input check itself is :func:`nldr._validation.check_masked_matrix` (re-exported here), the one
+mask check of the library. ``mean_fill`` is the trusting inner version of
+:func:`nldr._baselines.mean_impute` and every other method's starting point;
+``observed_standardisation`` is the one column standardisation on the observed entries.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._validation import check_masked_matrix
+
+__all__ = ["check_masked_matrix", "observed_column_means", "observed_standardisation", "mean_fill"]
+
+
+def observed_column_means(W: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Mean of each column over its observed entries, shape (d,); input already validated.
+
+    ``W`` must be 0 at the missing entries (as returned by :func:`check_masked_matrix`).
+    """
+    return W.sum(axis=0) / mask.sum(axis=0)
+
+
+def observed_standardisation(W: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each column's mean and standard deviation over its observed entries, shapes (d,), units of W;
+    a column whose observed entries are equal gets scale 1 (it is only centred). ``(W - mean) / scale``
+    standardises the observed entries. Input already validated (W zero at missing entries, every
+    column observed); the one standardisation of the imputers and the benchmark."""
+    mean = observed_column_means(W, mask)
+    squares = np.where(mask, W - mean, 0.0) ** 2
+    sd = np.sqrt(squares.sum(axis=0) / mask.sum(axis=0))
+    return mean, np.where(sd > 0, sd, 1.0)
+
+
+def mean_fill(W: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``W`` at the observed entries, the observed column means elsewhere (input already validated:
+    W zero at missing entries, every column observed)."""
+    return np.where(mask, W, observed_column_means(W, mask)[None, :])

@@ -1,0 +1,222 @@
+"""Linear low-rank imputers: :class:`PPCAImputer` (probabilistic PCA, Table 2's "PPCA"),
+:class:`SoftImputer` (nuclear-norm completion) and :class:`RobustPCAImputer` (principal component
+pursuit). New rows are completed from the fitted linear model (each class says how)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._baselines import ppca_impute, soft_impute
+from .._baselines._masked import mean_fill
+from .._baselines.rpca import rpca_impute
+from ._base import MaskedImputerBase
+
+__all__ = ["PPCAImputer", "SoftImputer", "RobustPCAImputer", "SOFT_IMPUTE_DEFAULT_FRACTION"]
+
+#: SoftImputer's default lam, as a fraction of the largest singular value of the centred mean-filled
+#: matrix (the middle of the hold-out grid :data:`nldr._baselines.peers.SOFT_IMPUTE_FRACTIONS`)
+SOFT_IMPUTE_DEFAULT_FRACTION = 0.03
+#: iteratively reweighted least-squares sweeps of RobustPCAImputer.transform (least absolute deviations)
+_IRLS_SWEEPS = 50
+
+
+def _row_space(L: np.ndarray, residual: np.ndarray, rank: int) -> tuple[np.ndarray, float]:
+    """The fitted rows' linear model for new rows: the basis B = V_r diag(s_r) / sqrt(n) of the row
+    space of L (n, d), so that a row's coefficients have unit variance, and the noise variance, from
+    the median squared residual on the observed entries (the chi-squared(1) median is 0.455, so a
+    gross error among them does not set it)."""
+    _, sv, Vt = np.linalg.svd(L, full_matrices=False)
+    basis = Vt[:rank].T * (sv[:rank] / np.sqrt(L.shape[0]))[None, :]
+    noise = float(np.median(residual**2)) / 0.455 if residual.size else 0.0
+    return basis, max(noise, 1e-12 * float(np.mean(sv[:rank] ** 2) / L.shape[0]) if rank else 1e-12)
+
+
+def _fit_on_basis(W, mask, centre, basis, noise, *, robust: bool) -> np.ndarray:
+    """Rows (m, d) completed on centre + span(basis (d, r)). A row's coefficients a are the
+    posterior mean under a ~ N(0, I) and Gaussian noise of variance ``noise`` on its observed
+    entries, (B_o^T B_o + noise I)^-1 B_o^T (w_o - centre_o); with ``robust`` the data term is
+    reweighted to least absolute deviations, so a gross error among the observed entries does not
+    drag the fit. Observed entries are kept."""
+    out = np.where(mask, W, centre)
+    r = basis.shape[1]
+    if r == 0:
+        return out
+    for i in range(W.shape[0]):
+        o = mask[i]
+        if not o.any() or o.all():
+            continue
+        A, b = basis[o], W[i, o] - centre[o]
+        weights = np.ones(b.size)
+        for _ in range(_IRLS_SWEEPS if robust else 1):
+            Aw = A * weights[:, None]
+            coef = np.linalg.solve(A.T @ Aw + noise * np.eye(r), Aw.T @ b)
+            scale = np.sqrt(noise)
+            weights = scale / np.maximum(np.abs(b - A @ coef), scale)  # Huber-like IRLS towards l1
+        out[i, ~o] = centre[~o] + basis[~o] @ coef
+    return out
+
+
+class PPCAImputer(MaskedImputerBase):
+    """Probabilistic PCA with missing values, fitted by exact EM (the "PPCA" of the paper's Table 2).
+
+    ``fit`` runs :func:`nldr._baselines.ppca_impute` (from the complete-data solution on the
+    mean-imputed matrix); missing entries are their posterior means E[x_m | x_o]. ``transform`` gives
+    new rows the same posterior means under the fitted model (mean, loadings, noise variance).
+
+    Parameters
+    ----------
+    missing_values : np.nan or float, default np.nan
+    n_components : int or None, default None
+        Latent dimension q, 1 <= q < n_features; None: min(10, n_features - 1) (oil flow, 12
+        columns: q = 9, 10 and 11 are within noise of each other, better than q <= 8).
+    options : dict or None, default None
+        Keyword arguments of :func:`~nldr._baselines.ppca_impute`: ``max_iter`` (EM iterations,
+        5000), ``tol`` (stop when the log-likelihood changes by less than tol per observed entry,
+        1e-7), ``accelerate`` (over-relaxed EM, True).
+
+    Attributes
+    ----------
+    n_components_ : int
+    mean_ : array, shape (n_features,)
+    components_ : array, shape (n_features, n_components_), the loading matrix
+    noise_variance_ : float
+    result_ : nldr._baselines.PPCAResult
+    completed_ : array, shape (n_samples, n_features)
+    n_features_in_ : int
+    """
+
+    _min_samples = 2
+    _min_features = 2
+
+    _option_names = ("max_iter", "tol", "accelerate")
+
+    def __init__(self, missing_values=np.nan, *, n_components=None, options=None):
+        self.missing_values = missing_values
+        self.n_components = n_components
+        self.options = options
+
+    def _solve(self, W, mask):
+        q = min(10, W.shape[1] - 1) if self.n_components is None else self.n_components
+        result = ppca_impute(np.where(mask, W, np.nan), mask, q, **self._options())
+        self.n_components_ = int(q)
+        self.mean_, self.components_ = result.mean, result.components
+        self.noise_variance_ = float(result.noise_variance)
+        return result.x, result
+
+    def _complete(self, W, mask):
+        return self.result_.posterior_mean(W, mask)
+
+
+class SoftImputer(MaskedImputerBase):
+    """Nuclear-norm matrix completion, SoftImpute (Mazumder, Hastie & Tibshirani 2010).
+
+    ``fit`` runs :func:`nldr._baselines.soft_impute`: min 1/2 ||P_O(Z - X_c)||_F^2 + lam ||Z||_* with
+    X_c the columns centred on their observed means (``center``); missing entries come from Z.
+    ``transform`` fits each new row's observed entries on the row space of the fitted Z (plus the
+    means; coefficients by their posterior mean with the fitted rows as the prior and the residual
+    variance as noise) and fills the missing ones from that fit.
+
+    Parameters
+    ----------
+    missing_values : np.nan or float, default np.nan
+    lam : float >= 0 or None, default None
+        Weight of the nuclear norm, in the units of X. None: :data:`SOFT_IMPUTE_DEFAULT_FRACTION`
+        times the largest singular value of the (centred) mean-imputed X, above which Z = 0.
+    center : bool, default True
+        Complete the columns centred on their observed means, and add the means back.
+    options : dict or None, default None
+        Keyword arguments of :func:`~nldr._baselines.soft_impute`: ``tol`` (stop when
+        ||Z_{k+1} - Z_k||_F^2 <= tol ||Z_k||_F^2, 1e-7), ``max_iter`` (5000).
+
+    Attributes
+    ----------
+    lam_ : float
+    rank_ : int, rank of the fitted Z
+    column_means_ : array, shape (n_features,)
+    basis_ : array, shape (n_features, rank_), Z's row space scaled by its singular values / sqrt(n)
+    noise_variance_ : float, of the observed entries about the fit (robust estimate)
+    result_ : nldr._baselines.SoftImputeResult
+    completed_ : array, shape (n_samples, n_features)
+    n_features_in_ : int
+    """
+
+    _option_names = ("tol", "max_iter")
+
+    def __init__(self, missing_values=np.nan, *, lam=None, center=True, options=None):
+        self.missing_values = missing_values
+        self.lam = lam
+        self.center = center
+        self.options = options
+
+    def _solve(self, W, mask):
+        lam = self.lam
+        if lam is None:
+            filled = mean_fill(W, mask)
+            if self.center:
+                filled = filled - filled.mean(axis=0)
+            lam = SOFT_IMPUTE_DEFAULT_FRACTION * float(np.linalg.svd(filled, compute_uv=False)[0])
+        result = soft_impute(np.where(mask, W, np.nan), mask, lam=lam, center=self.center, **self._options())
+        self.lam_ = float(lam)
+        self.rank_ = int(result.rank)
+        self.column_means_ = result.column_means
+        residual = (result.Z + self.column_means_ - W)[mask]
+        self.basis_, self.noise_variance_ = _row_space(result.Z, residual, self.rank_)
+        return result.x, result
+
+    def _complete(self, W, mask):
+        return _fit_on_basis(W, mask, self.column_means_, self.basis_, self.noise_variance_, robust=False)
+
+
+class RobustPCAImputer(MaskedImputerBase):
+    """Linear Robust PCA by principal component pursuit, with missing entries (Candes et al. 2011).
+
+    ``fit`` runs :func:`nldr._baselines.rpca.rpca_impute`: min ||L||_* + lam ||S||_1 with L + S = X on
+    the observed entries, ``lam = lam_factor / sqrt(max(n, d) * share observed)``; the estimate is
+    the low-rank L (plus the column medians), so observed entries with gross errors are corrected
+    too. ``transform`` fits each new row's observed entries on the row space of L (as
+    :class:`SoftImputer`, the data term reweighted towards least absolute deviations, robust to a gross
+    error among them), fills the missing ones from that fit and keeps the observed ones.
+
+    Parameters
+    ----------
+    missing_values : np.nan or float, default np.nan
+    lam_factor : float > 0, default 1.0
+        Multiple of Candes et al.'s weight of the l1 norm (dimensionless).
+    center : bool, default True
+        Subtract the observed column medians first and add them back.
+    options : dict or None, default None
+        Keyword arguments of :func:`~nldr._baselines.rpca.rpca_pcp`: ``mu`` (the ADMM penalty, 1 /
+        units of X; default n d / (4 sum |X_c|) on the observed entries), ``tol`` (1e-7),
+        ``max_iter`` (10000).
+
+    Attributes
+    ----------
+    rank_ : int, rank of L
+    column_centre_ : array, shape (n_features,)
+    basis_ : array, shape (n_features, rank_), L's row space scaled by its singular values / sqrt(n)
+    noise_variance_ : float, of the observed entries about L (robust estimate)
+    result_ : nldr._baselines.rpca.RPCAResult
+    completed_ : array, shape (n_samples, n_features)
+    n_features_in_ : int
+    """
+
+    _option_names = ("mu", "tol", "max_iter")
+
+    def __init__(self, missing_values=np.nan, *, lam_factor=1.0, center=True, options=None):
+        self.missing_values = missing_values
+        self.lam_factor = lam_factor
+        self.center = center
+        self.options = options
+
+    def _solve(self, W, mask):
+        result = rpca_impute(
+            np.where(mask, W, np.nan), mask, lam_factor=self.lam_factor, center=self.center, **self._options()
+        )
+        self.rank_ = int(result.rank)
+        self.column_centre_ = result.column_centre
+        residual = (result.x - W)[mask]
+        self.basis_, self.noise_variance_ = _row_space(result.L, residual, self.rank_)
+        return result.x, result
+
+    def _complete(self, W, mask):
+        return _fit_on_basis(W, mask, self.column_centre_, self.basis_, self.noise_variance_, robust=True)

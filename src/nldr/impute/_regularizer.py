@@ -1,0 +1,547 @@
+"""The paper's method as a scikit-learn imputer: :class:`KernelRegularizerImputer`."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from sklearn.utils import check_random_state
+
+from .._baselines._masked import mean_fill, observed_standardisation
+from .._options import ExactOptions, NystroemOptions, last_stage_only, solver_options
+from .._validation import check_count, check_positive
+from ..data_terms import MaskedHuber, MaskedLeastSquares
+from ..kernels import squared_distances
+from ..model_selection import HoldoutSearch
+from ..preimage import Subspace, average_solutions, complete_from_starts, nearest_rows
+from ..regularizer import LONG_SOLVE_ROWS, minimize_regularized
+from ._base import MaskedImputerBase
+from ._new_rows import NoComponentsError, regularizer_subspace, row_folds, search_transform_knobs
+
+__all__ = [
+    "KernelRegularizerImputer",
+    "AUTO_EXACT_MAX_ROWS",
+    "MEDIAN_RULE_MULTIPLE",
+    "METHODS",
+    "TUNE_GAMMA_MULTIPLES",
+    "TUNE_TAUS",
+    "TUNE_FOLDS",
+    "TUNE_HOLDOUT",
+    "TUNE_MIN_ROWS",
+    "TUNE_TRANSFORM",
+    "TUNE_ROW_SHARE",
+    "TUNE_ROW_HIDDEN",
+    "LOSSES",
+]
+
+#: data losses of ``loss``
+LOSSES = ("squared", "huber")
+#: solver paths of ``method``: "auto" and minimize_regularized's methods
+METHODS = ("auto", "exact", "nystroem", "nystroem-warm")
+#: keys of ``schedule``: minimize_regularized's penalty schedule
+SCHEDULE_KEYS = ("rho0", "rho_growth", "rho_max")
+#: ``method="auto"`` solves exactly up to this many rows and warm-starts from the Nystroem kernel above
+#: (docs/PERFORMANCE.md, "The imputer's solver path").
+AUTO_EXACT_MAX_ROWS = 150
+#: from here (where an exact solve warns) "auto" runs every stage on AUTO_LANDMARKS landmarks, no
+#: exact last stage (its eigensolver grows as n^3; docs/PERFORMANCE.md#auto-landmarks)
+AUTO_NYSTROEM_MIN_ROWS, AUTO_LANDMARKS = LONG_SOLVE_ROWS, 200
+#: options "exact" takes (method="auto" drops the others below AUTO_EXACT_MAX_ROWS rows)
+_EXACT_OPTIONS = frozenset(f.name for f in dataclasses.fields(ExactOptions))
+#: minimize_regularized's default penalty schedule
+_DEFAULT_SCHEDULE = {"rho0": 1.0, "rho_max": 1e4}
+#: the default width is this multiple of 1 / (median squared distance between rows), standardised units
+#: (docs/REPRODUCTION.md, "The imputer's defaults")
+MEDIAN_RULE_MULTIPLE = 0.25
+#: ``gamma="auto"``: the hold-out chooses among these multiples of 1 / (median squared row distance)
+#: (docs/REPRODUCTION.md, "The imputer's defaults")
+TUNE_GAMMA_MULTIPLES = (0.125, 0.25, 0.5, 1.0)
+#: ``tau="auto"``: the hold-out chooses among these taus (standardised units when ``standardize``)
+TUNE_TAUS = (0.1, 0.3)
+#: the tuning's Monte-Carlo hold-out folds: how many, and the share of observed entries each hides
+TUNE_FOLDS = 2
+TUNE_HOLDOUT = 0.1
+#: below this many rows "auto" is not searched: tau 0.1 and the median rule's width
+TUNE_MIN_ROWS = 20
+#: ``n_neighbors="auto"``, ``starts="auto"``: the row folds choose ``transform``'s (n_neighbors, starts)
+#: among these (the second is the choice when the rows are too few to tune)
+TUNE_TRANSFORM = ((1, "mean"), (5, "mean"), (10, "mean"), (5, "each"))
+#: the row folds hold out this share of the training rows, and hide this least share of their entries
+TUNE_ROW_SHARE = 0.2
+TUNE_ROW_HIDDEN = 0.25
+#: the tuning's fold solves stop at these looser tolerances (they only rank candidates)
+_TUNE_TOLERANCES = {"tol": 1e-7, "gtol": 1e-4}
+#: the tuning's fold solves above AUTO_EXACT_MAX_ROWS rows: the Nystroem kernel of this many landmarks
+_TUNE_LANDMARKS = 100
+#: a fold's tau path stops once its error exceeds this factor times the path's best so far
+_TUNE_STOP_FACTOR = 1.5
+_NYSTROEM_OPTIONS = frozenset(f.name for f in dataclasses.fields(NystroemOptions))
+
+
+def _median_rule_gamma(S: np.ndarray) -> float:
+    """``MEDIAN_RULE_MULTIPLE / median ||s_i - s_j||^2`` over the pairs of rows of a complete S (units S^-2).
+
+    The default width of :class:`KernelRegularizerImputer`: the median pair of rows gets kernel value
+    exp(-1/4). Beyond 2000 rows an even subsample of 2000 sets the median.
+    """
+    n = S.shape[0]
+    rows = S if n <= 2000 else S[np.linspace(0, n - 1, 2000).astype(int)]
+    D = squared_distances(rows)
+    med = float(np.median(D[np.triu_indices(rows.shape[0], 1)]))
+    if not med > 0:
+        raise ValueError(
+            "the rows of X (after mean imputation) coincide: the median rule cannot set gamma; pass gamma"
+        )
+    return MEDIAN_RULE_MULTIPLE / med
+
+
+class KernelRegularizerImputer(MaskedImputerBase):
+    """Matrix completion with the non-linear dimensionality regularizer (Garg, Eriksson, Reid 2016).
+
+    ``fit_transform(X)`` solves the paper's joint problem on X: over the completed matrix S and a
+    kernel factor C,
+
+        min ||mask o (X - S)||_F^2 + rho/2 ||K(S) - C^T C||_F^2 + tau ||C||_*,
+
+    by the penalty method on rho (:func:`nldr.regularizer.minimize_regularized` with
+    :class:`~nldr.data_terms.MaskedLeastSquares`, or the Huber loss with ``loss="huber"``, from mean
+    imputation), with the RBF kernel
+    ``K_ij = exp(-gamma ||s_i - s_j||^2)``. ``fit`` does the same and keeps the learnt manifold: the
+    rows S and the kernel factor C, whose non-zero rows span the principal subspace in feature space.
+    ``transform`` completes rows never seen against that manifold: the observed entries stay, the
+    missing ones minimise the feature-space distance to the subspace (the pre-image problem of
+    :mod:`nldr.preimage`, started from the nearest training rows on the observed entries). Rows seen
+    in ``fit`` get their fitted estimate.
+
+    The estimate of a training row is the solve's S, whose observed entries also move slightly (the
+    data term is a penalty, not a constraint); ``transform`` keeps the observed entries of new rows.
+
+    With no arguments this is the recommended configuration: columns standardised on their observed
+    entries; tau and the width chosen inside ``fit`` by the hold-out search on the observed entries
+    (:class:`nldr.model_selection.HoldoutSearch`: the widths :data:`TUNE_GAMMA_MULTIPLES` of the
+    median rule times the taus :data:`TUNE_TAUS`, on :data:`TUNE_FOLDS` folds, one cold solve per
+    fold and warm starts along tau); ``transform``'s neighbours and starts chosen on row folds of
+    the training rows (:data:`TUNE_TRANSFORM`, at the first new row); the exact solver up to
+    :data:`AUTO_EXACT_MAX_ROWS` rows and the Nystroem warm start above (evidence:
+    docs/REPRODUCTION.md, "The imputer's defaults"). That is 17 solves in ``fit`` and 2 more at the
+    first new row; below :data:`TUNE_MIN_ROWS` rows nothing is searched (tau 0.1, the median rule,
+    the mean of 5 neighbours). The paper's Table 2 is
+    ``KernelRegularizerImputer(standardize=False, gamma=0.075, tau=0.1, method="exact")``.
+
+    Parameters
+    ----------
+    missing_values : np.nan or float, default np.nan
+        The marker of a missing entry (NaN is always missing too).
+    gamma : float > 0, None or "auto", default "auto"
+        RBF inverse squared width, in 1 / (units of the solved matrix)^2: standardised units when
+        ``standardize``, the data's units otherwise. None: the median rule on the
+        mean-imputed (standardised) matrix: :data:`MEDIAN_RULE_MULTIPLE` / (median squared distance
+        between its rows). "auto": the hold-out search's choice among :data:`TUNE_GAMMA_MULTIPLES`
+        / (that median squared distance).
+    tau : float > 0 or "auto", default "auto"
+        Weight of the trace norm of C (the feature-space data's nuclear norm), in the data term's
+        units (squared units of the solved matrix). Larger tau: a lower-dimensional manifold.
+        "auto": the hold-out search's choice among :data:`TUNE_TAUS`. The search's folds hide
+        :data:`TUNE_HOLDOUT` of the observed entries each (seeded by ``random_state``, 0 when None),
+        its fold solves stop at looser tolerances and use the Nystroem kernel (100 landmarks) above
+        :data:`AUTO_EXACT_MAX_ROWS` rows; the smallest mean squared hold-out error (data units) wins.
+    standardize : bool, default True
+        Solve on columns centred and scaled by their observed entries' mean and standard deviation
+        (a constant column is only centred), and return the estimate in the data's units. False
+        solves on X as given, the paper's setting.
+    center : bool, default False
+        Double-centre the kernel (the paper's Table 2 does not).
+    method : {"auto", "exact", "nystroem", "nystroem-warm"}, default "auto"
+        :func:`~nldr.regularizer.minimize_regularized`'s solver path. "exact": every penalty stage
+        with the exact kernel. "nystroem-warm": the stages before the last on a Nystroem kernel of
+        100 landmark rows, then the last stage exactly from there (an exact stopping test, possibly
+        another local minimum: docs/PERFORMANCE.md). "nystroem": every stage on the Nystroem kernel
+        (not the exact minimiser). "auto": "exact" up to :data:`AUTO_EXACT_MAX_ROWS` rows,
+        "nystroem-warm" above, and "nystroem" on :data:`AUTO_LANDMARKS` landmarks from
+        :data:`AUTO_NYSTROEM_MIN_ROWS` rows (an approximate minimiser whose cost grows linearly in
+        the rows).
+    options : dict or None, default None
+        The method's options, as :func:`~nldr.regularizer.minimize_regularized` takes them
+        (tolerances, ``max_inner``, ``eigensolver``, ``landmarks``, ...); an option the method does
+        not take is a ValueError naming the method (raised by every fit, before any solve). "auto"
+        takes the options of "nystroem-warm"; its Nystroem-only ones (``landmarks``,
+        ``landmark_seed``, ``exact_stages``, ``exact_tol``, ``last_landmarks``) apply only above
+        :data:`AUTO_EXACT_MAX_ROWS` rows, and from :data:`AUTO_NYSTROEM_MIN_ROWS` rows only
+        ``landmarks`` (default :data:`AUTO_LANDMARKS`), ``landmark_seed`` and the tolerances. The
+        Nystroem methods' ``landmark_seed`` defaults to a draw from ``random_state``.
+    schedule : dict or None, default None
+        The penalty schedule: ``rho0``, ``rho_growth``, ``rho_max`` of
+        :func:`~nldr.regularizer.minimize_regularized` (None: its defaults 1, 10, 1e4, the paper's).
+    verbose : bool, default False
+        Print one line per penalty stage.
+    n_neighbors : int >= 1 or "auto", default "auto"
+        ``transform``: the training rows nearest to a new row on its observed entries, which give
+        its starts.
+    starts : {"mean", "each", "auto"}, default "auto"
+        ``transform``: one start at the neighbours' mean, or one per neighbour with the local minima
+        averaged (:meth:`nldr.robust_kpca.RobustKernelPCA.complete`). "auto" (either knob): the
+        first ``transform`` of a row not seen in ``fit`` chooses (n_neighbors, starts) among the
+        pairs :data:`TUNE_TRANSFORM` that agree with the fixed knob, by :data:`TUNE_FOLDS` row
+        folds: the manifold fitted (at the chosen tau and width) on the other rows completes
+        :data:`TUNE_ROW_SHARE` of the rows with a share of their observed
+        entries hidden (the training matrix's missing share, at least :data:`TUNE_ROW_HIDDEN`).
+    weights : {"uniform", "distance"}, default "uniform"
+        ``transform`` with ``starts="each"``: how the local minima are averaged.
+    random_state : int, RandomState or None, default 0
+        Seeds the landmark draw of the Nystroem warm start (the exact path draws nothing) and the
+        tuning's folds. The default 0 makes two fits of one matrix identical; None draws afresh.
+    warm_start : bool, default False
+        A fit after a previous fit on a matrix of the same shape starts from the previous solve's S
+        (``result_.x``) and solves the last penalty stage only (rho0 = rho_max), its stopping tests in
+        the units of the full schedule (``options["scale"]`` = sqrt(rho0 of ``schedule``) unless
+        ``options`` sets it). This is how a path of taus or widths is solved cheaply, e.g. by
+        :class:`nldr.model_selection.HoldoutSearch` with ``path="tau"``. The first fit, or one on
+        another shape, solves the full schedule from mean imputation. A fit on the previous fit's
+        matrix that changes only ``n_neighbors``, ``starts``, ``weights`` or ``verbose`` keeps the
+        previous solve (the same problem; a path over ``transform``'s knobs shares one fit).
+    loss : {"squared", "huber"}, default "squared"
+        The data term on the observed entries: masked least squares
+        (:class:`~nldr.data_terms.MaskedLeastSquares`), or the masked Huber loss
+        (:class:`~nldr.data_terms.MaskedHuber`: squared within ``delta``, linear beyond), for data
+        with gross errors among the observed entries. ``transform`` of new rows is the same for
+        both (the observed entries are kept).
+    delta : float > 0, default 1.0
+        The Huber threshold, in the units of the solved matrix (standardised units when
+        ``standardize``); used with ``loss="huber"`` only.
+        :class:`nldr.model_selection.RobustScaleDelta` sets it from a least-squares fit's residuals.
+
+    Attributes
+    ----------
+    gamma_, tau_ : float
+        The width and weight used (standardised units when ``standardize``).
+    cv_results_ : dict of arrays
+        The tau and width search's record (:attr:`nldr.model_selection.HoldoutSearch.cv_results_`),
+        when ``gamma`` or ``tau`` is "auto" and the rows are at least :data:`TUNE_MIN_ROWS`.
+    n_neighbors_, starts_ : int, str
+        ``transform``'s neighbours and starts (set by ``fit`` when fixed or not searched, by the
+        first ``transform`` of a new row when searched).
+    transform_results_ : dict
+        (n_neighbors, starts) -> mean squared error of the row folds, when they were searched.
+    method_ : str
+        The solver path used: "exact", "nystroem-warm" or "nystroem".
+    mean_, scale_ : arrays, shape (n_features,)
+        The standardisation (zeros and ones when ``standardize`` is False).
+    result_ : nldr.regularizer.RegularizerResult
+        The solve (its ``x`` in standardised units when ``standardize``).
+    completed_ : array, shape (n_samples, n_features)
+        The estimate of the training matrix, in the data's units.
+    manifold_rows_ : array, shape (n_samples, n_features)
+        S, the rows of the learnt manifold (standardised units when ``standardize``).
+    kernel_factor_ : array, shape (n_components_, n_samples)
+        The non-zero rows of C (``diag(l) U^T``).
+    n_components_ : int
+        Rank of C: the dimension of the learnt manifold's principal subspace.
+    n_features_in_ : int
+    feature_names_in_ : array of str (when X has string column names)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from nldr.impute import KernelRegularizerImputer
+    >>> rng = np.random.default_rng(0)
+    >>> t = rng.uniform(0, 2 * np.pi, 60)
+    >>> X = np.c_[np.cos(t), np.sin(t), 0.5 * np.cos(2 * t)]
+    >>> X_missing = np.where(rng.random(X.shape) < 0.2, np.nan, X)
+    >>> X_hat = KernelRegularizerImputer().fit_transform(X_missing)
+    >>> bool(np.isfinite(X_hat).all())
+    True
+    """
+
+    def __init__(
+        self,
+        missing_values=np.nan,
+        *,
+        gamma="auto",
+        tau="auto",
+        standardize=True,
+        center=False,
+        method="auto",
+        options=None,
+        schedule=None,
+        verbose=False,
+        n_neighbors="auto",
+        starts="auto",
+        weights="uniform",
+        random_state=0,
+        warm_start=False,
+        loss="squared",
+        delta=1.0,
+    ):
+        self.missing_values = missing_values
+        self.gamma = gamma
+        self.tau = tau
+        self.standardize = standardize
+        self.center = center
+        self.method = method
+        self.options = options
+        self.schedule = schedule
+        self.verbose = verbose
+        self.n_neighbors = n_neighbors
+        self.starts = starts
+        self.weights = weights
+        self.random_state = random_state
+        self.warm_start = warm_start
+        self.loss = loss
+        self.delta = delta
+
+    _min_samples = 2
+
+    def _check_params(self):
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}; got {self.method!r}")
+        if self.starts not in ("mean", "each", "auto"):
+            raise ValueError(f"starts must be 'mean', 'each' or 'auto'; got {self.starts!r}")
+        if self.weights not in ("uniform", "distance"):
+            raise ValueError(f"weights must be 'uniform' or 'distance'; got {self.weights!r}")
+        if not _is_auto(self.n_neighbors):
+            check_count(self.n_neighbors, "n_neighbors (an int >= 1 or 'auto')")
+        tau = "auto" if _is_auto(self.tau) else check_positive(self.tau, "tau (a float > 0 or 'auto')")
+        gamma = self.gamma
+        if not (gamma is None or _is_auto(gamma)):
+            gamma = check_positive(gamma, "gamma (a float > 0, None or 'auto')")
+        if self.options is not None and not isinstance(self.options, dict):
+            raise ValueError(f"options must be a dict of the method's options or None; got {self.options!r}")
+        schedule = {} if self.schedule is None else self.schedule
+        if not isinstance(schedule, dict) or set(schedule) - set(SCHEDULE_KEYS):
+            raise ValueError(
+                f"schedule must be a dict with keys among {SCHEDULE_KEYS} or None; got {schedule!r}"
+            )
+        options = dict(self.options or {})
+        if self.method != "exact":
+            options.setdefault("landmark_seed", 0)  # drawn from random_state at fit
+        solver_options("nystroem-warm" if self.method == "auto" else self.method, options)
+        if not isinstance(self.warm_start, bool | np.bool_):
+            raise ValueError(f"warm_start must be True or False; got {self.warm_start!r}")
+        if self.loss not in LOSSES:
+            raise ValueError(f"loss must be one of {LOSSES}; got {self.loss!r}")
+        check_positive(self.delta, "delta")
+        return gamma, tau
+
+    def _standardisation(self, W, mask):
+        if not self.standardize:
+            return np.zeros(W.shape[1]), np.ones(W.shape[1])
+        return observed_standardisation(W, mask)
+
+    def _solver_arguments(self, n: int, warm: bool) -> tuple[str, dict]:
+        """The solver path and minimize_regularized's keyword arguments (checked by _check_params).
+        ``warm``: the last penalty stage only, in the stopping units of the full schedule."""
+        method = self.method
+        if method == "auto":
+            method = "exact" if n <= AUTO_EXACT_MAX_ROWS else "nystroem-warm"
+            method = "nystroem" if n >= AUTO_NYSTROEM_MIN_ROWS else method
+        schedule = dict(self.schedule or {})
+        options = dict(self.options or {})
+        if method == "exact":
+            options = {k: v for k, v in options.items() if k in _EXACT_OPTIONS}
+        elif method == "nystroem" and self.method == "auto":
+            kept = {k: v for k, v in options.items() if k in _NYSTROEM_OPTIONS}
+            options = {"landmarks": AUTO_LANDMARKS, **kept}
+        if method != "exact" and "landmark_seed" not in options:
+            options["landmark_seed"] = int(
+                check_random_state(self.random_state).randint(np.iinfo(np.int32).max)
+            )
+        kwargs = {"method": method, "options": options, "verbose": bool(self.verbose), **schedule}
+        return method, last_stage_only(kwargs, **_DEFAULT_SCHEDULE) if warm else kwargs
+
+    def _grid(self, gamma, tau, median_rule: float) -> dict:
+        """The tuning's candidates: every "auto" knob over its grid, the others at their one value."""
+        if _is_auto(gamma):
+            gammas = [float(m * median_rule / MEDIAN_RULE_MULTIPLE) for m in TUNE_GAMMA_MULTIPLES]
+        else:
+            gammas = [median_rule if gamma is None else float(gamma)]
+        return {"gamma": gammas, "tau": [float(t) for t in TUNE_TAUS] if _is_auto(tau) else [float(tau)]}
+
+    def _tune(self, W, mask, grid: dict) -> dict:
+        """Choose gamma and tau among ``grid`` by the hold-out search on the observed entries of W.
+
+        :class:`~nldr.model_selection.HoldoutSearch` with :data:`TUNE_FOLDS` Monte-Carlo folds, each
+        hiding :data:`TUNE_HOLDOUT` of the observed entries (seeded by ``random_state``, 0 when None),
+        the candidates of a fold solved as warm-started paths along tau from the smallest up (one
+        cold solve per fold), looser tolerances, and the Nystroem kernel above
+        :data:`AUTO_EXACT_MAX_ROWS` rows; the smallest mean squared hold-out error wins. Returns the
+        chosen ``{"gamma", "tau"}`` and sets ``cv_results_``."""
+        seed = self._tune_seed()
+        base = self.get_params()
+        base.update(gamma=grid["gamma"][0], tau=grid["tau"][0], warm_start=False, verbose=False)
+        base.update(n_neighbors=TUNE_TRANSFORM[1][0], starts="mean")  # transform is not scored here
+        estimator = type(self)(**base)
+        fold_params = self._fold_solver(W.shape[0])
+        search = HoldoutSearch(
+            estimator,
+            grid,
+            n_folds=TUNE_FOLDS,
+            holdout=TUNE_HOLDOUT,
+            random_state=seed,
+            path="tau",
+            stop_factor=_TUNE_STOP_FACTOR,
+            fold_params=fold_params,
+            refit=False,
+            verbose=bool(self.verbose),
+        )
+        search.fit(np.where(mask, W, np.nan))
+        self.cv_results_ = search.cv_results_
+        return dict(search.best_params_)
+
+    def _transform_candidates(self) -> list[tuple[int, str]]:
+        """The (n_neighbors, starts) pairs the row folds compare: the "auto" ones over their grid."""
+        pairs = [c for c in TUNE_TRANSFORM if _is_auto(self.n_neighbors) or c[0] == self.n_neighbors]
+        pairs = [c for c in pairs if self.starts == "auto" or c[1] == self.starts]
+        if not pairs:  # a fixed n_neighbors or starts outside the grid
+            k = TUNE_TRANSFORM[1][0] if _is_auto(self.n_neighbors) else int(self.n_neighbors)
+            pairs = [(k, s) for s in ("mean", "each") if self.starts in ("auto", s)]
+        return pairs
+
+    def _tune_transform(self, W, mask, gamma: float, tau: float) -> tuple[int, str]:
+        """Choose ``transform``'s (n_neighbors, starts) by :data:`TUNE_FOLDS` row folds of the training rows.
+
+        Each fold (:func:`~nldr.impute._new_rows.row_folds`, seeded by ``random_state``) fits the
+        manifold (at ``gamma``, ``tau``, the tuning's fold solver) on the other rows, hides a share (the
+        training matrix's missing share, at least :data:`TUNE_ROW_HIDDEN`) of the observed entries of
+        :data:`TUNE_ROW_SHARE` of the rows, completes them with every candidate, and scores the mean
+        squared error on the hidden entries (data units); the smallest mean wins
+        (:class:`~nldr.model_selection.HoldoutSearch`, one fit per fold shared by the candidates).
+        Sets ``transform_results_`` (candidate -> mean error)."""
+        candidates = self._transform_candidates()
+        if len(candidates) == 1:
+            return candidates[0]
+        share = max(TUNE_ROW_HIDDEN, 1.0 - mask.mean())
+        folds = row_folds(mask, TUNE_FOLDS, TUNE_ROW_SHARE, share, self._tune_seed())
+        base = self.get_params()
+        base.update(gamma=gamma, tau=tau, warm_start=False, verbose=False, **self._fold_solver(W.shape[0]))
+        X, found = np.where(mask, W, np.nan), None
+        if folds:
+            found = search_transform_knobs(type(self)(**base), X, candidates, folds, bool(self.verbose))
+        if found is None:  # nothing to hide, or a fold's manifold has no component
+            return TUNE_TRANSFORM[1] if TUNE_TRANSFORM[1] in candidates else candidates[0]
+        self.transform_results_, best = found
+        return best
+
+    def _tune_seed(self) -> int:
+        if self.random_state is None:
+            return 0
+        return int(check_random_state(self.random_state).randint(np.iinfo(np.int32).max))
+
+    def _fold_solver(self, n: int) -> dict:
+        """The tuning's fold solves: the exact kernel up to AUTO_EXACT_MAX_ROWS rows, the Nystroem kernel
+        above, at looser tolerances (they only rank candidates)."""
+        if n <= AUTO_EXACT_MAX_ROWS:
+            options = {k: v for k, v in (self.options or {}).items() if k in _EXACT_OPTIONS}
+            return {"method": "exact", "options": {**options, **_TUNE_TOLERANCES}}
+        options = {k: v for k, v in (self.options or {}).items() if k in _NYSTROEM_OPTIONS}
+        options = {"landmarks": _TUNE_LANDMARKS, "landmark_seed": self._tune_seed(), **options}
+        return {"method": "nystroem", "options": {**options, **_TUNE_TOLERANCES}}
+
+    def _solve(self, W, mask):
+        gamma, tau = self._check_params()
+        if self._keeps_solve(W, mask):  # a warm refit that changes only transform's knobs
+            self._transform_knobs(W.shape[0])
+            return self.completed_, self.result_
+        self.__dict__.pop("_solved_key", None)
+        self.mean_, self.scale_ = self._standardisation(W, mask)
+        Z = W if not self.standardize else np.where(mask, (W - self.mean_) / self.scale_, 0.0)
+        S0 = mean_fill(Z, mask)
+        previous = getattr(self, "completed_", None) if self.warm_start else None
+        warm = previous is not None and previous.shape == W.shape
+        if warm:  # the previous estimate, in this fit's (standardised) units
+            S0 = previous if not self.standardize else (previous - self.mean_) / self.scale_
+        median_rule = _median_rule_gamma(mean_fill(Z, mask)) if gamma is None or _is_auto(gamma) else None
+        grid = self._grid(gamma, tau, median_rule)
+        tuned = (_is_auto(gamma) or _is_auto(tau)) and W.shape[0] >= TUNE_MIN_ROWS
+        if tuned:
+            chosen = self._tune(W, mask, grid)
+        else:
+            self.__dict__.pop("cv_results_", None)
+            chosen = {
+                "gamma": median_rule if _is_auto(gamma) else grid["gamma"][0],
+                "tau": 0.1 if _is_auto(tau) else grid["tau"][0],
+            }
+        self.gamma_, self.tau_ = float(chosen["gamma"]), float(chosen["tau"])
+        self._transform_knobs(W.shape[0])
+        self._training = (W, mask)
+        tau = self.tau_
+        self.method_, kwargs = self._solver_arguments(W.shape[0], warm)
+        result = minimize_regularized(
+            self._data_term(Z, mask), S0, gamma=self.gamma_, tau=tau, center=bool(self.center), **kwargs
+        )
+        S = result.x
+        self.manifold_rows_ = S
+        keep = np.flatnonzero(np.any(result.C != 0.0, axis=1))
+        self.kernel_factor_ = result.C[keep]
+        self.n_components_ = int(keep.size)
+        self._space = None  # built by the first transform of a new row
+        self._solved_key = self._solve_key()
+        X_hat = S if not self.standardize else S * self.scale_ + self.mean_
+        return X_hat, result
+
+    def _solve_key(self) -> tuple:
+        """The parameters the solve depends on (all but transform's knobs and verbose), comparable."""
+        params = self.get_params(deep=False)
+        ignored = {"n_neighbors", "starts", "weights", "warm_start", "verbose"}
+        return tuple((name, repr(params[name])) for name in sorted(set(params) - ignored))
+
+    def _keeps_solve(self, W, mask) -> bool:
+        """A warm fit on the previous fit's matrix that changes only transform's knobs keeps its solve."""
+        training = getattr(self, "_training", None)
+        return bool(
+            self.warm_start
+            and training is not None
+            and getattr(self, "_solved_key", None) == self._solve_key()
+            and np.array_equal(training[0], W)
+            and np.array_equal(training[1], mask)
+        )
+
+    def _transform_knobs(self, n: int) -> None:
+        """Reset ``transform``'s (n_neighbors_, starts_): set now when fixed (or below
+        :data:`TUNE_MIN_ROWS` rows), otherwise chosen by the row folds at the first new row."""
+        for name in ("transform_results_", "n_neighbors_", "starts_"):
+            self.__dict__.pop(name, None)
+        pairs = self._transform_candidates()
+        if len(pairs) == 1 or n < TUNE_MIN_ROWS:
+            self.n_neighbors_, self.starts_ = int(pairs[0][0]), str(pairs[0][1])
+
+    def _data_term(self, Z, mask):
+        """The data term on the solved matrix Z: masked least squares, or Huber (delta in Z's units)."""
+        if self.loss == "huber":
+            return MaskedHuber(Z, mask, float(self.delta))
+        return MaskedLeastSquares(Z, mask)
+
+    def _subspace(self) -> Subspace:
+        """The principal subspace spanned by C's rows, in the form :mod:`nldr.preimage` takes (built
+        once per solve)."""
+        space = getattr(self, "_space", None)
+        if space is None:
+            space = self._space = regularizer_subspace(
+                self.manifold_rows_, self.gamma_, self.kernel_factor_, bool(self.center)
+            )
+        return space
+
+    def _complete(self, W, mask):
+        if self.n_components_ == 0:
+            raise NoComponentsError(
+                f"the fitted manifold has no component (tau = {self.tau_:g} removed them all): "
+                "transform cannot complete new rows; lower tau"
+            )
+        Z = np.where(mask, (W - self.mean_) / self.scale_, 0.0)
+        S = self.manifold_rows_
+        if not hasattr(self, "n_neighbors_"):  # "auto": chosen once, before the first new row
+            k, starts = self._tune_transform(*self._training, self.gamma_, self.tau_)
+            self.n_neighbors_, self.starts_ = int(k), str(starts)
+        n_neighbors, starts = self.n_neighbors_, self.starts_
+        nearest, distance = nearest_rows(S, Z, mask, min(n_neighbors, S.shape[0]))
+        rows = S[nearest]
+        rows[~mask.any(axis=1)] = S.mean(axis=0)
+        if starts == "mean":
+            rows = rows.mean(axis=1, keepdims=True)
+        X0 = np.where(mask[:, None, :], Z[:, None, :], rows)
+        X_hat = complete_from_starts(self._subspace(), Z, mask, X0)
+        X_hat = X_hat[:, 0] if starts == "mean" else average_solutions(X_hat, distance, self.weights)
+        return np.where(mask, W, X_hat * self.scale_ + self.mean_)
+
+
+def _is_auto(value) -> bool:
+    return isinstance(value, str) and value == "auto"
