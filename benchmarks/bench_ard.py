@@ -31,7 +31,7 @@ import pandas as pd
 from nldr.datasets import load_oil
 from nldr.experiments._table2 import random_mask
 from nldr.impute import KernelRegularizerImputer
-from nldr.impute import regularizer as module
+from nldr.impute import _regularizer as module
 from nldr.model_selection import holdout_folds
 
 

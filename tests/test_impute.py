@@ -168,7 +168,7 @@ def test_auto_method_by_size(rng):
 def test_auto_method_runs_every_stage_on_landmarks_from_its_threshold(rng, monkeypatch):
     """From AUTO_NYSTROEM_MIN_ROWS rows "auto" is method="nystroem" on AUTO_LANDMARKS landmarks (the
     warm start's own options dropped, the landmark seed drawn from random_state), below it the warm start."""
-    from nldr.impute import regularizer as module
+    from nldr.impute import _regularizer as module
 
     monkeypatch.setattr(module, "AUTO_EXACT_MAX_ROWS", 20)
     monkeypatch.setattr(module, "AUTO_NYSTROEM_MIN_ROWS", 50)

@@ -7,7 +7,7 @@ from test_impute import hide, surface
 
 from nldr._baselines import mean_impute
 from nldr.impute import KernelRegularizerImputer
-from nldr.impute import regularizer as module
+from nldr.impute import _regularizer as module
 from nldr.model_selection import holdout_folds
 
 

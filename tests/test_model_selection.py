@@ -219,7 +219,7 @@ def test_a_warm_regularizer_imputer_refit_on_another_shape_or_standardised_start
 )
 def test_a_bad_regularizer_imputer_option_is_refused_before_the_first_fold(params, monkeypatch):
     from nldr.impute import KernelRegularizerImputer
-    from nldr.impute import regularizer as module
+    from nldr.impute import _regularizer as module
 
     def never(*args, **kwargs):
         raise AssertionError("a solve ran before the options were checked")

@@ -7,8 +7,8 @@ import pandas as pd
 import pytest
 from conftest import synthetic_sequence
 
+from nldr.experiments import _robust_nrsfm as module
 from nldr.experiments import get
-from nldr.experiments import robust_nrsfm as module
 from nldr.experiments._robust_nrsfm import METHODS, huber_kernel_parameters, robust_tnh_tau, run_displaced
 from nldr.kernels import rbf_kernel
 from nldr.model_selection import robust_scale

@@ -9,8 +9,8 @@ import pytest
 from protocol import full_config, quick_config
 from threadpoolctl import threadpool_limits
 
+from nldr.experiments import _selection as module
 from nldr.experiments import get
-from nldr.experiments import selection as module
 from nldr.experiments._table2 import random_mask
 from nldr.experiments.base import Job
 

@@ -172,7 +172,7 @@ def test_an_imputer_runs_its_own_arithmetic_on_the_chosen_threads(machine, monke
     """fit and transform set the count for the whole call, the estimator's arithmetic outside the
     solver included (here its column standardisation and its neighbour search)."""
     from nldr.impute import KernelRegularizerImputer
-    from nldr.impute import regularizer as module
+    from nldr.impute import _regularizer as module
 
     seen = {"fit": set(), "transform": set()}
     phase = {"now": "fit"}
