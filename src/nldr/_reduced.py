@@ -53,9 +53,7 @@ def rbf(S: np.ndarray, gamma: float) -> np.ndarray:
 
 
 #: "auto" switches to Lanczos ("krylov") once n >= PARTIAL_MIN_N and the previous evaluation kept at
-#: most this fraction of the spectrum. At n = 1000 (one thread) Lanczos took 13 / 45 / 72-80 ms for
-#: 24 / 97 / 141 eigenpairs against 61 / 85 / 101 ms for MRRR; with 0.16 rather than 0.12 the last
-#: stage of a 1000-row Table 2 solve (rank 143) also takes it, 10 % less CPU (bench_scale.py).
+#: most this fraction of the spectrum (measured: docs/PERFORMANCE.md#lanczos).
 KRYLOV_AUTO_FRACTION = 0.16
 
 

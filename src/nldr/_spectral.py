@@ -29,14 +29,14 @@ still reduces K to tridiagonal form (the O(n^3) part every method shares) but sk
 that are not wanted. It pays only when few eigenvalues pass the threshold and n is large: below
 :data:`PARTIAL_MIN_N` the full ``numpy.linalg.eigh`` is faster, and when more than
 :data:`PARTIAL_MAX_FRACTION` of the spectrum passes, MRRR's per-eigenvector work exceeds the full
-divide-and-conquer (both measured by benchmarks/bench_closed_form.py). :func:`leading_eigenpairs`
+divide-and-conquer (measured: docs/PERFORMANCE.md#closed-form). :func:`leading_eigenpairs`
 chooses, and falls back to the full decomposition if the partial one fails.
 
 Maintenance note (Krylov decompositions). MRRR still pays for the O(n^3) tridiagonal reduction
-(about 0.06 s at n = 1000, one thread) however few eigenpairs pass. When the number k that passes is a
-small fraction of n, implicitly restarted Lanczos (ARPACK through ``scipy.sparse.linalg.eigsh``) costs
-O(n^2) per matrix-vector product instead: at n = 1000 it finds 24 / 64 / 97 eigenpairs in about 13 /
-35 / 45 ms against 61 / 73 / 85 ms for MRRR (bench_scale.py). It needs the count in advance, so
+however few eigenpairs pass. When the number k that passes is a small fraction of n, implicitly
+restarted Lanczos (ARPACK through ``scipy.sparse.linalg.eigsh``) costs O(n^2) per matrix-vector product
+instead, and is the faster at n = 1000 (measured: docs/PERFORMANCE.md#lanczos). It needs the count in
+advance, so
 :func:`krylov_eigenpairs` asks for ``expected`` plus a margin and, until the smallest eigenvalue it
 returns lies at or below the threshold (so that every eigenvalue above it was found), doubles the
 request; past :data:`KRYLOV_MAX_FRACTION` of n it hands over to MRRR. ARPACK runs to machine precision
@@ -70,7 +70,8 @@ __all__ = [
 #: eigenpairs above the threshold, MRRR), "krylov" (the same eigenpairs by Lanczos, see the maintenance
 #: note), "full" (every eigenpair, numpy.linalg.eigh).
 EIGENSOLVERS = ("auto", "partial", "krylov", "full")
-#: Smallest n for which "auto" tries the partial decomposition (see the maintenance note).
+#: Smallest n for which "auto" tries the partial decomposition (see the maintenance note; measured:
+#: docs/PERFORMANCE.md#closed-form).
 PARTIAL_MIN_N = 300
 #: "auto" uses the full decomposition when more than this fraction of eigenvalues is expected to pass.
 PARTIAL_MAX_FRACTION = 0.25

@@ -44,9 +44,9 @@ __all__ = [
 #: Below this many samples (kernel rows) the solvers use one BLAS thread whatever the mode (except
 #: ``NLDR_AUTO_THREADS=0``) (docs/PERFORMANCE.md#threads).
 SMALL_PROBLEM_ROWS = 400
-#: From this many samples the library's own choice uses every idle core; below, one thread: on a
-#: 2-core machine a second thread lost at every size measured up to 3000 rows, idle or busy, and a
-#: dense eigendecomposition gained 1.3x at 3000 and 1.45x at 5000 on an idle one (PERFORMANCE.md#threads).
+#: From this many samples the library's own choice uses every idle core; below, one thread: between
+#: the largest size where a second thread lost and the smallest where it won (measured:
+#: docs/PERFORMANCE.md#threads).
 IDLE_CORES_MIN_ROWS = 4000
 #: How long the idle cores are sampled (seconds of wall time, no CPU) before a large solve.
 SAMPLE_SECONDS = 0.1

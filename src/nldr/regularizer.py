@@ -107,11 +107,11 @@ def _check_problem(data_term, S, gamma, tau, name_S="S"):
 
 
 #: From this many samples a solve on the exact kernel throughout warns about its cost
-#: (:class:`LongSolveWarning`). One evaluation (an n x n eigenproblem) measured 6.6-7.6x dearer at
-#: 2000 rows than at 1000 and 17-40x at 3000 (one BLAS thread; docs/PERFORMANCE.md#long-solves), and a
-#: default 1000-row solve takes about 52 CPU s: about 3 CPU minutes at 1500 rows, 23 at 3000.
+#: (:class:`LongSolveWarning`): one evaluation is an n x n eigenproblem, about n^3, and a default
+#: solve there takes minutes (measured: docs/PERFORMANCE.md#long-solves).
 LONG_SOLVE_ROWS = 1500
-#: CPU seconds of a default exact solve on 1000 oil-flow rows (docs/PERFORMANCE.md#scale).
+#: CPU seconds of a default exact solve on 1000 oil-flow rows, scaled by n^3 for the warning's
+#: estimate (measured: docs/PERFORMANCE.md#long-solves).
 _SECONDS_AT_1000_ROWS = 52.0
 
 
@@ -125,7 +125,7 @@ def _warn_long_solve(n: int) -> None:
         f"minimize_regularized: {n} samples on the exact kernel: expect about {minutes:.0f} CPU minutes "
         f"(about {_SECONDS_AT_1000_ROWS:.0f} CPU s at 1000 rows, growing as n^3; "
         "docs/PERFORMANCE.md#long-solves). "
-        "method='nystroem-warm' reaches an exact answer faster (1000 rows: about 8 CPU s with options "
+        "method='nystroem-warm' reaches an exact answer faster (e.g. options "
         "{'last_landmarks': 200, 'exact_tol': 1e-5}); method='nystroem' (e.g. options {'landmarks': 300}) "
         "is approximate and cheaper still. verbose=True prints each stage as it ends",
         LongSolveWarning,

@@ -1,4 +1,4 @@
-"""Denoising (not in the paper; issue 18): scikit-learn's digits with Gaussian noise, four denoisers.
+"""Denoising (not in the paper): scikit-learn's digits with Gaussian noise, four denoisers.
 
 Data: ``sklearn.datasets.load_digits`` (1797 images of 8 x 8 pixels, shipped inside scikit-learn, no
 download), scaled to [0, 1]. One job = one noise level sigma and one seed: a seeded permutation gives a

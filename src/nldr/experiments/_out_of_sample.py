@@ -1,4 +1,4 @@
-"""Out of sample (not in the paper; issue 18): complete new oil-flow rows against a manifold learned once.
+"""Out of sample (not in the paper): complete new oil-flow rows against a manifold learned once.
 
 The paper computes pre-images only for the rows its manifold was learned from and leaves new samples as
 future work (its Section 4.1). Here :class:`nldr.impute.RobustKernelPCAImputer` learns the manifold

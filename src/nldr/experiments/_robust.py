@@ -1,4 +1,4 @@
-"""Robust (not in the paper; issue 18): completion and denoising of oil flow with sparse gross errors.
+"""Robust (not in the paper): completion and denoising of oil flow with sparse gross errors.
 
 The paper's closing remark, that its framework "could trivially incorporate robust functions like the L1
 norm", built and measured. The first ``n_rows`` oil-flow training rows are the clean matrix X. One job

@@ -1,4 +1,4 @@
-"""Selection (not in the paper; issue 15): Table 2's completion protocol with every knob chosen by
+"""Selection (not in the paper): Table 2's completion protocol with every knob chosen by
 hold-out cross-validation on the observed entries, beside the paper's values and an oracle.
 
 One job = one missing probability p and one seeded mask (the same masks as Table 2: mask k at p uses

@@ -1,4 +1,4 @@
-"""Selection for NRSfM (not in the paper; issue 15): Tables 3 and 4 with tau and the kernel width chosen
+"""Selection for NRSfM (not in the paper): Tables 3 and 4 with tau and the kernel width chosen
 by hold-out reprojection error on hidden 2D points (:mod:`nldr.nrsfm._selection`), beside the paper's
 values and Table 4's oracle.
 

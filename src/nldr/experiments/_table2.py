@@ -7,7 +7,7 @@ in the config (:func:`paper_methods`), and completes the same masked matrix (NaN
 starting (where it iterates) from mean imputation. The error is the sum of squared errors over the
 whole n x d matrix (docs/REPRODUCTION.md#table-2-error explains why not the root mean square).
 
-The peers (issue 16) follow the paper's rows: scikit-learn's KNNImputer and IterativeImputer,
+The peers follow the paper's rows: scikit-learn's KNNImputer and IterativeImputer,
 missForest and SoftImpute, each with its knob chosen by :class:`~nldr.model_selection.HoldoutSearch`
 on the observed entries of the same mask (:func:`run_peers`); the config can restrict a costly peer to
 the first masks of each p.
@@ -327,8 +327,8 @@ class Table2(Experiment):
 
     def jobs(self, config):
         """One job per p and run of ``masks_per_job`` consecutive masks (default 1): at 100 rows a mask
-        costs about 1.5 CPU s of arithmetic against about 3.6 s of Python start-up per job, so the
-        paper's protocol groups its 50 masks per p into a few jobs. A single-mask job is named
+        costs less arithmetic than a job's Python start-up (measured: docs/PERFORMANCE.md#pipeline), so
+        the paper's protocol groups its 50 masks per p into a few jobs. A single-mask job is named
         ``p0.05_seed2016``, a group ``p0.05_seeds2016-2025``; the masks and their seeds are the same
         however they are grouped, so the table does not depend on the grouping."""
         s = self.settings(config)

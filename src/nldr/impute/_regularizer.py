@@ -41,20 +41,20 @@ METHODS = ("auto", "exact", "nystroem", "nystroem-warm")
 #: keys of ``schedule``: minimize_regularized's penalty schedule
 SCHEDULE_KEYS = ("rho0", "rho_growth", "rho_max")
 #: ``method="auto"`` solves exactly up to this many rows and warm-starts from the Nystroem kernel above
-#: (docs/PERFORMANCE.md, "The imputer's solver path").
+#: (measured: docs/PERFORMANCE.md#solver-path).
 AUTO_EXACT_MAX_ROWS = 150
 #: from here (where an exact solve warns) "auto" runs every stage on AUTO_LANDMARKS landmarks, no
-#: exact last stage (its eigensolver grows as n^3; docs/PERFORMANCE.md#auto-landmarks)
+#: exact last stage (its eigensolver grows as n^3; measured: docs/PERFORMANCE.md#auto-landmarks)
 AUTO_NYSTROEM_MIN_ROWS, AUTO_LANDMARKS = LONG_SOLVE_ROWS, 200
 #: options "exact" takes (method="auto" drops the others below AUTO_EXACT_MAX_ROWS rows)
 _EXACT_OPTIONS = frozenset(f.name for f in dataclasses.fields(ExactOptions))
 #: minimize_regularized's default penalty schedule
 _DEFAULT_SCHEDULE = {"rho0": 1.0, "rho_max": 1e4}
 #: the default width is this multiple of 1 / (median squared distance between rows), standardised units
-#: (docs/REPRODUCTION.md, "The imputer's defaults")
+#: (measured: docs/REPRODUCTION.md#imputer-defaults)
 MEDIAN_RULE_MULTIPLE = 0.25
 #: ``gamma="auto"``: the hold-out chooses among these multiples of 1 / (median squared row distance)
-#: (docs/REPRODUCTION.md, "The imputer's defaults")
+#: (measured: docs/REPRODUCTION.md#imputer-defaults, as are the TUNE_* below)
 TUNE_GAMMA_MULTIPLES = (0.125, 0.25, 0.5, 1.0)
 #: ``tau="auto"``: the hold-out chooses among these taus (standardised units when ``standardize``)
 TUNE_TAUS = (0.1, 0.3)
