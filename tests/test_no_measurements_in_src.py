@@ -114,3 +114,17 @@ def test_scanner_passes_legitimate_words():
     ]
     for line in legitimate:
         assert not offending_lines(line), line
+
+
+def test_docs_anchors_named_in_src_exist():
+    """Every ``docs/<page>.md#<anchor>`` the source names (where a figure was measured) is an
+    ``<a id="...">`` anchor of that page."""
+    missing = []
+    for path in _source_files():
+        if path.suffix != ".py":
+            continue
+        for page, anchor in re.findall(r"docs/([\w-]+\.md)#([\w-]+)", path.read_text(encoding="utf-8")):
+            doc = REPO / "docs" / page
+            if not doc.is_file() or f'<a id="{anchor}"></a>' not in doc.read_text(encoding="utf-8"):
+                missing.append(f"{path.relative_to(REPO)}: docs/{page}#{anchor}")
+    assert not missing, "anchors named in src/ that the docs lack:\n" + "\n".join(missing)
