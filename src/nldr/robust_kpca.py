@@ -152,6 +152,12 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
     kernel_column_means_ : array, shape (n_samples,), column means of the uncentred training kernel
     n_features_in_ : int
 
+    See Also
+    --------
+    closed_form_rank_penalty : The closed form on a given kernel matrix (the paper's Algorithm 2).
+    nldr.impute.RobustKernelPCAImputer : Completes and denoises new rows against this manifold.
+    sklearn.decomposition.KernelPCA : Rank truncation instead of shrinkage.
+
     Notes
     -----
     ``transform`` projects new points onto the principal axes of the training features and scales
@@ -161,6 +167,18 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
     only up to rounding), so with ``eigensolver="full"`` the coordinates are exactly those of
     ``lam, U = numpy.linalg.eigh(K)`` reversed to decreasing order: ``U[:, :k] * l[:k]`` for the
     training points and ``(K_new @ U[:, :k]) * (l[:k] / lam[:k])`` for new points.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from nldr.robust_kpca import RobustKernelPCA
+    >>> X = np.array([[1.0, 2.0, 3.0], [3.0, 6.1, 9.0], [5.0, 9.9, 15.1], [6.0, 12.0, 18.0]])
+    >>> model = RobustKernelPCA(gamma=0.05, tau=0.01).fit(X)
+    >>> Z = model.transform(X)
+    >>> Z.shape == (4, model.n_components_), bool(np.allclose(Z, model.fit_transform(X)))
+    (True, True)
+    >>> bool(np.all(model.singular_values_ ** 2 <= model.eigenvalues_))  # shrunk, never grown
+    True
     """
 
     def __init__(self, gamma=None, tau=1.0, rho=1.0, center=True, eigensolver="auto"):

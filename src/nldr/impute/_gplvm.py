@@ -99,6 +99,29 @@ class GPLVMImputer(MaskedImputerBase):
     completed_ : array, shape (n_samples, n_features)
     n_features_in_ : int
     result_ : None
+
+    See Also
+    --------
+    KernelRegularizerImputer : The paper's method, a non-linear manifold without a latent space.
+    PPCAImputer : The linear model the GP-LVM generalises.
+
+    Notes
+    -----
+    Needs GPy (``pip install 'nldr[peers]'``); without it ``fit`` raises an ImportError that says so.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X = np.array([[1.0, 2.0, 3.0], [2.0, np.nan, 5.9], [3.0, 6.1, 9.0],
+    ...               [4.0, 7.9, np.nan], [5.0, 9.9, 15.1], [6.0, 12.0, 18.0]])
+    >>> from nldr.impute._gplvm import GPLVMImputer
+    >>> imputer = GPLVMImputer(n_latent=1, n_inducing=4, max_iter=20)
+    >>> X_hat = imputer.fit_transform(X)
+    >>> X_hat.shape, bool(np.isnan(X_hat).any())
+    ((6, 3), False)
+    >>> observed = ~np.isnan(X)
+    >>> bool(np.array_equal(X_hat[observed], X[observed]))
+    True
     """
 
     _min_samples = 3

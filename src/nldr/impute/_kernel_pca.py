@@ -106,6 +106,31 @@ class PKPCAImputer(_KernelBaseline):
     completed_ : array, shape (n_samples, n_features)
     subspace_ : nldr.preimage.Subspace, the fitted principal subspace (uncentred)
     n_features_in_ : int
+
+    See Also
+    --------
+    PPCAImputer : The same model in the data space.
+    RKPCAImputer : The paper's other kernel baseline.
+    KernelRegularizerImputer : The paper's method.
+
+    Notes
+    -----
+    The profile likelihood's gradient with respect to the missing entries follows from the envelope
+    theorem (the maintenance note of :mod:`nldr._baselines.pkpca`); the outer loop refits the
+    components and the inner one moves the missing entries by L-BFGS.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X = np.array([[1.0, 2.0, 3.0], [2.0, np.nan, 5.9], [3.0, 6.1, 9.0],
+    ...               [4.0, 7.9, np.nan], [5.0, 9.9, 15.1], [6.0, 12.0, 18.0]])
+    >>> from nldr.impute import PKPCAImputer
+    >>> X_hat = PKPCAImputer().fit_transform(X)
+    >>> X_hat.shape, bool(np.isnan(X_hat).any())
+    ((6, 3), False)
+    >>> observed = ~np.isnan(X)
+    >>> bool(np.array_equal(X_hat[observed], X[observed]))
+    True
     """
 
     def __init__(
@@ -166,6 +191,29 @@ class RKPCAImputer(_KernelBaseline):
     completed_ : array, shape (n_samples, n_features)
     subspace_ : nldr.preimage.Subspace, the fitted principal subspace (centred)
     n_features_in_ : int
+
+    See Also
+    --------
+    PKPCAImputer : The paper's other kernel baseline.
+    KernelRegularizerImputer : The paper's method.
+
+    Notes
+    -----
+    With ``weight=inf`` the observed entries stay fixed and only the missing ones move; the
+    subspace is refitted between L-BFGS runs on the profile energy until it stops changing.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X = np.array([[1.0, 2.0, 3.0], [2.0, np.nan, 5.9], [3.0, 6.1, 9.0],
+    ...               [4.0, 7.9, np.nan], [5.0, 9.9, 15.1], [6.0, 12.0, 18.0]])
+    >>> from nldr.impute import RKPCAImputer
+    >>> X_hat = RKPCAImputer(n_components=2).fit_transform(X)  # q < n_samples
+    >>> X_hat.shape, bool(np.isnan(X_hat).any())
+    ((6, 3), False)
+    >>> observed = ~np.isnan(X)
+    >>> bool(np.array_equal(X_hat[observed], X[observed]))
+    True
     """
 
     def __init__(

@@ -67,8 +67,8 @@ class PPCAImputer(MaskedImputerBase):
     ----------
     missing_values : np.nan or float, default np.nan
     n_components : int or None, default None
-        Latent dimension q, 1 <= q < n_features; None: min(10, n_features - 1) (oil flow, 12
-        columns: q = 9, 10 and 11 are within noise of each other, better than q <= 8).
+        Latent dimension q, 1 <= q < n_features; None: min(10, n_features - 1) (on oil flow's 12
+        columns q = 9-11 compare alike: docs/REPRODUCTION.md#table-2-baselines).
     options : dict or None, default None
         Keyword arguments of :func:`~nldr._baselines.ppca_impute`: ``max_iter`` (EM iterations,
         5000), ``tol`` (stop when the log-likelihood changes by less than tol per observed entry,
@@ -83,6 +83,29 @@ class PPCAImputer(MaskedImputerBase):
     result_ : nldr._baselines.PPCAResult
     completed_ : array, shape (n_samples, n_features)
     n_features_in_ : int
+
+    See Also
+    --------
+    PKPCAImputer : The same model in the feature space of an RBF kernel.
+    SoftImputer : Nuclear-norm completion, another linear low-rank model.
+
+    Notes
+    -----
+    Tipping & Bishop's model x = W z + mu + noise, z ~ N(0, I), fitted by EM on the observed entries
+    (over-relaxed by default); the estimate of a missing entry is its posterior mean.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X = np.array([[1.0, 2.0, 3.0], [2.0, np.nan, 5.9], [3.0, 6.1, 9.0],
+    ...               [4.0, 7.9, np.nan], [5.0, 9.9, 15.1], [6.0, 12.0, 18.0]])
+    >>> from nldr.impute import PPCAImputer
+    >>> X_hat = PPCAImputer(n_components=1).fit_transform(X)
+    >>> np.round(X_hat[[1, 3], [1, 2]])  # the missing entries, near 4 and 12
+    array([ 4., 12.])
+    >>> observed = ~np.isnan(X)
+    >>> bool(np.array_equal(X_hat[observed], X[observed]))
+    True
     """
 
     _min_samples = 2
@@ -138,6 +161,27 @@ class SoftImputer(MaskedImputerBase):
     result_ : nldr._baselines.SoftImputeResult
     completed_ : array, shape (n_samples, n_features)
     n_features_in_ : int
+
+    See Also
+    --------
+    PPCAImputer : A probabilistic linear low-rank model.
+    RobustPCAImputer : Linear low rank with gross errors among the observed entries.
+
+    Notes
+    -----
+    The iteration fills the missing entries from the current Z and soft-thresholds the singular
+    values by ``lam`` (singular value thresholding); the rank follows from lam.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X = np.array([[1.0, 2.0, 3.0], [2.0, np.nan, 5.9], [3.0, 6.1, 9.0],
+    ...               [4.0, 7.9, np.nan], [5.0, 9.9, 15.1], [6.0, 12.0, 18.0]])
+    >>> from nldr.impute import SoftImputer
+    >>> imputer = SoftImputer().fit(X)
+    >>> X_hat = imputer.transform(X)
+    >>> X_hat.shape, bool(np.isnan(X_hat).any()), imputer.rank_ >= 1
+    ((6, 3), False, True)
     """
 
     _option_names = ("tol", "max_iter")
@@ -198,6 +242,26 @@ class RobustPCAImputer(MaskedImputerBase):
     result_ : nldr._baselines.rpca.RPCAResult
     completed_ : array, shape (n_samples, n_features)
     n_features_in_ : int
+
+    See Also
+    --------
+    SoftImputer : Nuclear-norm completion without the sparse error term.
+    KernelRegularizerImputer : With ``loss="huber"``, the non-linear method robust to gross errors.
+
+    Notes
+    -----
+    Principal component pursuit splits the observed entries into a low-rank L and a sparse S of gross
+    errors, solved by ADMM (:func:`nldr._baselines.rpca.rpca_pcp`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X = np.array([[1.0, 2.0, 3.0], [2.0, np.nan, 5.9], [3.0, 6.1, 9.0],
+    ...               [4.0, 7.9, np.nan], [5.0, 9.9, 15.1], [6.0, 12.0, 18.0]])
+    >>> from nldr.impute import RobustPCAImputer
+    >>> X_hat = RobustPCAImputer().fit_transform(X)
+    >>> X_hat.shape, bool(np.isnan(X_hat).any())
+    ((6, 3), False)
     """
 
     _option_names = ("mu", "tol", "max_iter")

@@ -29,21 +29,10 @@ __all__ = ["RobustKernelPCAImputer", "Reconstruction"]
 class RobustKernelPCAImputer(MaskedImputerBase):
     """New rows completed (and optionally denoised) against the robust kernel PCA of complete rows.
 
-    ``fit`` learns the manifold once from the training rows with every entry observed: the RBF
-    kernel's eigenvalues shrunk in closed form by tau (:class:`nldr.robust_kpca.RobustKernelPCA`
-    with rho = 1; the number of components follows from tau). Rows with a missing entry do not enter
-    the manifold. ``transform`` solves, per row w with observation mask m, the pre-image problem
-
-        min_x sum_j m_j l(x_j - w_j) + rho * dist(phi(x), principal subspace)^2
-
-    (:meth:`~nldr.robust_kpca.RobustKernelPCA.complete`): ``rho=None`` keeps the observed entries
-    and completes the missing ones; a finite rho lets every entry move (denoising), with the squared
-    or the Huber loss ``l``. The problem is not convex: the starts come from the ``n_neighbors``
-    training rows nearest on the observed entries, at their mean (``starts="mean"``) or one solve
-    from each with the local minima averaged (``starts="each"``).
-
-    This needs complete training rows (a clean reference set; learn once, complete new rows). To
-    learn the manifold from incomplete rows, use :class:`~nldr.impute.KernelRegularizerImputer`.
+    ``fit`` learns the manifold once from the training rows with every entry observed (rows with a
+    missing entry do not enter it); ``transform`` completes each new row by the pre-image problem
+    (Notes). This needs complete training rows (a clean reference set; learn once, complete new rows);
+    to learn the manifold from incomplete rows, use :class:`~nldr.impute.KernelRegularizerImputer`.
     Not transductive: ``fit_transform(X)`` is ``fit(X).transform(X)`` (with ``rho=None`` the complete
     training rows come back unchanged).
 
@@ -96,16 +85,37 @@ class RobustKernelPCAImputer(MaskedImputerBase):
     n_features_in_ : int
     feature_names_in_ : array of str (when X has string column names)
 
+    See Also
+    --------
+    nldr.robust_kpca.RobustKernelPCA : The closed-form manifold this completes against.
+    KernelRegularizerImputer : Learns the manifold from incomplete rows.
+
+    Notes
+    -----
+    The manifold is the RBF kernel's eigenvalues shrunk in closed form by tau
+    (:class:`nldr.robust_kpca.RobustKernelPCA` with rho = 1; the number of components follows from
+    tau). ``transform`` solves, per row w with observation mask m,
+
+        min_x sum_j m_j l(x_j - w_j) + rho * dist(phi(x), principal subspace)^2
+
+    (:meth:`~nldr.robust_kpca.RobustKernelPCA.complete`): ``rho=None`` keeps the observed entries
+    and completes the missing ones; a finite rho lets every entry move (denoising), with the squared
+    or the Huber loss ``l``. The problem is not convex: the starts come from the ``n_neighbors``
+    training rows nearest on the observed entries, at their mean (``starts="mean"``) or one solve
+    from each with the local minima averaged (``starts="each"``).
+
     Examples
     --------
     >>> import numpy as np
     >>> from nldr.impute import RobustKernelPCAImputer
-    >>> rng = np.random.default_rng(0)
-    >>> t = rng.uniform(0, 2 * np.pi, 200)
-    >>> X = np.c_[np.cos(t), np.sin(t), 0.5 * np.cos(2 * t)]
-    >>> imputer = RobustKernelPCAImputer(gamma=1.0, tau=0.01).fit(X[:150])
-    >>> X_new = np.where(rng.random((50, 3)) < 0.3, np.nan, X[150:])
-    >>> bool(np.isfinite(imputer.transform(X_new)).all())
+    >>> X_train = np.array([[1.0, 2.0, 3.0], [3.0, 6.1, 9.0], [5.0, 9.9, 15.1], [6.0, 12.0, 18.0]])
+    >>> X_new = np.array([[2.0, np.nan, 6.0], [4.0, 7.9, np.nan]])
+    >>> imputer = RobustKernelPCAImputer(gamma=0.05, tau=0.01).fit(X_train)
+    >>> X_hat = imputer.transform(X_new)
+    >>> X_hat.shape, bool(np.isnan(X_hat).any())
+    ((2, 3), False)
+    >>> observed = ~np.isnan(X_new)
+    >>> bool(np.array_equal(X_hat[observed], X_new[observed]))  # rho=None keeps the observed entries
     True
     """
 
@@ -242,6 +252,25 @@ class Reconstruction(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
     ----------
     estimator_ : the fitted clone
     n_features_in_ : int
+
+    See Also
+    --------
+    RobustKernelPCAImputer : Denoises against the closed-form robust kernel PCA (with finite ``rho``).
+
+    Notes
+    -----
+    The reconstruction lies in the span of the fitted components: PCA's projection, or KernelPCA's
+    learnt pre-image map.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.decomposition import PCA
+    >>> from nldr.impute import Reconstruction
+    >>> X = np.array([[1.0, 2.0, 3.0], [2.0, 4.1, 5.9], [3.0, 6.1, 9.0], [4.0, 7.9, 12.1]])
+    >>> X_denoised = Reconstruction(PCA(1)).fit_transform(X)
+    >>> X_denoised.shape, int(np.linalg.matrix_rank(X_denoised - X_denoised.mean(axis=0)))
+    ((4, 3), 1)
     """
 
     def __init__(self, estimator=None):

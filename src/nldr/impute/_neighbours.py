@@ -22,6 +22,7 @@ class NearestNeighbourImputer(MaskedImputerBase):
     Parameters
     ----------
     missing_values : np.nan or float, default np.nan
+        The marker of a missing entry (NaN is always missing too).
 
     Attributes
     ----------
@@ -29,6 +30,25 @@ class NearestNeighbourImputer(MaskedImputerBase):
     result_ : nldr._baselines.NearestNeighbourResult
     completed_ : array, shape (n_samples, n_features)
     n_features_in_ : int
+
+    See Also
+    --------
+    sklearn.impute.KNNImputer : k neighbours, any row a donor for the columns it observes.
+
+    Notes
+    -----
+    Unlike ``KNNImputer(n_neighbors=1)``, the donor must be fully observed, as in the paper; that is
+    why it has no answer once every row misses an entry.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X = np.array([[1.0, 2.0, 3.0], [2.0, np.nan, 5.9], [3.0, 6.1, 9.0],
+    ...               [4.0, 7.9, np.nan], [5.0, 9.9, 15.1], [6.0, 12.0, 18.0]])
+    >>> from nldr.impute import NearestNeighbourImputer
+    >>> X_hat = NearestNeighbourImputer().fit_transform(X)
+    >>> X_hat[1], X_hat[3]  # row 1 copies row 0's entry, row 3 row 2's
+    (array([2. , 2. , 5.9]), array([4. , 7.9, 9. ]))
     """
 
     _require_observed_columns = False

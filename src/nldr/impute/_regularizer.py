@@ -98,35 +98,12 @@ def _median_rule_gamma(S: np.ndarray) -> float:
 class KernelRegularizerImputer(MaskedImputerBase):
     """Matrix completion with the non-linear dimensionality regularizer (Garg, Eriksson, Reid 2016).
 
-    ``fit_transform(X)`` solves the paper's joint problem on X: over the completed matrix S and a
-    kernel factor C,
-
-        min ||mask o (X - S)||_F^2 + rho/2 ||K(S) - C^T C||_F^2 + tau ||C||_*,
-
-    by the penalty method on rho (:func:`nldr.regularizer.minimize_regularized` with
-    :class:`~nldr.data_terms.MaskedLeastSquares`, or the Huber loss with ``loss="huber"``, from mean
-    imputation), with the RBF kernel
-    ``K_ij = exp(-gamma ||s_i - s_j||^2)``. ``fit`` does the same and keeps the learnt manifold: the
-    rows S and the kernel factor C, whose non-zero rows span the principal subspace in feature space.
-    ``transform`` completes rows never seen against that manifold: the observed entries stay, the
-    missing ones minimise the feature-space distance to the subspace (the pre-image problem of
-    :mod:`nldr.preimage`, started from the nearest training rows on the observed entries). Rows seen
-    in ``fit`` get their fitted estimate.
-
-    The estimate of a training row is the solve's S, whose observed entries also move slightly (the
-    data term is a penalty, not a constraint); ``transform`` keeps the observed entries of new rows.
-
-    With no arguments this is the recommended configuration: columns standardised on their observed
-    entries; tau and the width chosen inside ``fit`` by the hold-out search on the observed entries
-    (:class:`nldr.model_selection.HoldoutSearch`: the widths :data:`TUNE_GAMMA_MULTIPLES` of the
-    median rule times the taus :data:`TUNE_TAUS`, on :data:`TUNE_FOLDS` folds, one cold solve per
-    fold and warm starts along tau); ``transform``'s neighbours and starts chosen on row folds of
-    the training rows (:data:`TUNE_TRANSFORM`, at the first new row); the exact solver up to
-    :data:`AUTO_EXACT_MAX_ROWS` rows and the Nystroem warm start above (evidence:
-    docs/REPRODUCTION.md, "The imputer's defaults"). That is 17 solves in ``fit`` and 2 more at the
-    first new row; below :data:`TUNE_MIN_ROWS` rows nothing is searched (tau 0.1, the median rule,
-    the mean of 5 neighbours). The paper's Table 2 is
-    ``KernelRegularizerImputer(standardize=False, gamma=0.075, tau=0.1, method="exact")``.
+    ``fit_transform(X)`` completes X by solving the paper's joint problem over the completed matrix
+    and a kernel factor; ``fit`` keeps the learnt manifold, and ``transform`` completes new rows
+    against it. With no arguments this is the recommended configuration (tau and the width chosen by
+    hold-out on the observed entries inside ``fit``); the paper's Table 2 is
+    ``KernelRegularizerImputer(standardize=False, gamma=0.075, tau=0.1, method="exact")``. The user
+    guide (docs/user_guide.md) explains the problem, the defaults and the options.
 
     Parameters
     ----------
@@ -239,17 +216,35 @@ class KernelRegularizerImputer(MaskedImputerBase):
     n_features_in_ : int
     feature_names_in_ : array of str (when X has string column names)
 
+    See Also
+    --------
+    nldr.regularizer.minimize_regularized : The solver underneath, for any data term.
+    nldr.model_selection.HoldoutSearch : The hold-out search that chooses tau and the width.
+    RobustKernelPCAImputer : New rows against a manifold learnt once from complete rows.
+
+    Notes
+    -----
+    ``fit`` solves
+
+        min ||mask o (X - S)||_F^2 + rho/2 ||K(S) - C^T C||_F^2 + tau ||C||_*
+
+    over the completed matrix S and the kernel factor C, with the RBF kernel
+    ``K_ij = exp(-gamma ||s_i - s_j||^2)``, by the penalty method on rho from mean imputation. The
+    estimate of a training row is the solve's S, whose observed entries also move slightly (the data
+    term is a penalty); ``transform`` keeps the observed entries of new rows and moves the missing
+    ones to the pre-image nearest the learnt subspace (:mod:`nldr.preimage`).
+
     Examples
     --------
     >>> import numpy as np
+    >>> X = np.array([[1.0, 2.0, 3.0], [2.0, np.nan, 5.9], [3.0, 6.1, 9.0],
+    ...               [4.0, 7.9, np.nan], [5.0, 9.9, 15.1], [6.0, 12.0, 18.0]])
     >>> from nldr.impute import KernelRegularizerImputer
-    >>> rng = np.random.default_rng(0)
-    >>> t = rng.uniform(0, 2 * np.pi, 60)
-    >>> X = np.c_[np.cos(t), np.sin(t), 0.5 * np.cos(2 * t)]
-    >>> X_missing = np.where(rng.random(X.shape) < 0.2, np.nan, X)
-    >>> X_hat = KernelRegularizerImputer().fit_transform(X_missing)
-    >>> bool(np.isfinite(X_hat).all())
-    True
+    >>> X_hat = KernelRegularizerImputer().fit_transform(X)
+    >>> X_hat.shape, bool(np.isnan(X_hat).any())
+    ((6, 3), False)
+    >>> np.round(X_hat[[1, 3], [1, 2]])  # the missing entries, near 4 and 12
+    array([ 4., 12.])
     """
 
     def __init__(

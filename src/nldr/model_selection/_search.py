@@ -292,6 +292,31 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
         Before any fit: a bad option of the search, an unknown or invalid parameter of a candidate or of
         ``fold_params`` (every candidate is cloned, set and validated first), a fold that hides nothing
         or hides an unobserved entry. After the folds: every candidate failed.
+
+    See Also
+    --------
+    EntryFolds : The default folds over the observed entries.
+    sklearn.model_selection.GridSearchCV : The same interface for supervised estimators.
+
+    Notes
+    -----
+    A value chosen on ground truth is an oracle; this search sees only the observed entries. The
+    regularizer's grid and rule, and what they choose on the paper's data:
+    docs/REPRODUCTION.md#selection.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X = np.array([[1.0, 2.0, 3.0], [2.0, np.nan, 5.9], [3.0, 6.1, 9.0],
+    ...               [4.0, 7.9, np.nan], [5.0, 9.9, 15.1], [6.0, 12.0, 18.0]])
+    >>> from nldr.impute import SoftImputer
+    >>> from nldr.model_selection import HoldoutSearch
+    >>> search = HoldoutSearch(SoftImputer(), {"lam": [0.1, 1.0, 10.0]}, n_folds=2).fit(X)
+    >>> sorted(search.best_params_), search.n_splits_, len(search.cv_results_["params"])
+    (['lam'], 2, 3)
+    >>> X_hat = search.transform(X)  # the chosen candidate, refitted on every observed entry
+    >>> X_hat.shape, bool(np.isnan(X_hat).any())
+    ((6, 3), False)
     """
 
     def __init__(
