@@ -352,9 +352,9 @@ def minimize_regularized(
           (gamma / s^2; tau, rho0, rho_max times s^2) takes the same iterates up to rounding (module
           maintenance note on scale). At rho0 = 1 it is 1, scipy's own tests.
         - ``stage_tol`` (float > 0, default None): ``tol`` of every stage but the last; None means
-          ``tol``. The earlier stages only provide the next one's start: 1e-7 saves a third of the
+          ``tol``. The earlier stages only provide the next one's start: a looser one saves
           iterations, but a start further from the previous minimum can lead to another local minimum
-          (docs/PERFORMANCE.md, bench_scale.py).
+          (measured: docs/PERFORMANCE.md#stage-tol).
         - ``isolation_guard`` (bool, default True): start the schedule at
           ``max(rho0, isolation_safe_rho0(tau))`` (and end it no lower), so that the first stage
           cannot push unobserved coordinates away from the data (module maintenance note). It changes
