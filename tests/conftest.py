@@ -12,6 +12,17 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 
+#: Fixtures that read the real data files: a test that uses one is a ``realdata`` test.
+REAL_DATA_FIXTURES = frozenset({"data_dir", "oil40"})
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark every test that reads the real data as ``realdata``, so that ``make test`` (the unit tests,
+    ``-m "not pipeline and not realdata"``) needs neither the data nor the network."""
+    for item in items:
+        if REAL_DATA_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.realdata)
+
 
 @pytest.fixture(scope="session")
 def data_dir(tmp_path_factory) -> Path:

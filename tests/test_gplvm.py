@@ -9,8 +9,8 @@ import pytest
 from sklearn.impute import SimpleImputer
 
 from nldr._baselines._masked import observed_standardisation
-from nldr.impute import baseline_grid
 from nldr.impute._gplvm import GPY_MISSING, GPLVMImputer
+from nldr.impute._grids import baseline_grid
 
 pytest.importorskip("GPy", reason="GPy (the peers extra) is part of make setup")
 

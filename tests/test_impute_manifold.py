@@ -7,9 +7,9 @@ from sklearn.decomposition import PCA, KernelPCA
 from sklearn.utils.estimator_checks import parametrize_with_checks
 from test_impute import surface
 
+from nldr._preimage import average_solutions
 from nldr.impute import Reconstruction, RobustKernelPCAImputer
 from nldr.model_selection import HoldoutSearch
-from nldr.preimage import average_solutions
 from nldr.robust_kpca import RobustKernelPCA
 
 

@@ -9,10 +9,11 @@ from sklearn.base import BaseEstimator, TransformerMixin
 from threadpoolctl import threadpool_limits
 
 from nldr._baselines import mean_impute
+from nldr._schedule import isolation_safe_rho0
 from nldr._spectral import cubic_threshold
 from nldr.data_terms import MaskedLeastSquares
 from nldr.model_selection import DEFAULT_TAUS, HoldoutSearch, holdout_folds, median_gamma
-from nldr.regularizer import isolation_safe_rho0, minimize_regularized
+from nldr.regularizer import minimize_regularized
 
 
 @pytest.fixture(autouse=True)

@@ -19,9 +19,9 @@ from nldr.nrsfm import (
     select_kernel,
     select_tnh_tau,
     trace_norm_heuristic,
-    visibility_folds,
 )
 from nldr.nrsfm._camera_refinement import tnh_with_camera_refinement
+from nldr.nrsfm._layout import visibility_folds
 from nldr.nrsfm._rotations import quaternion_rotation
 from nldr.regularizer import minimize_regularized
 

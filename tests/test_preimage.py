@@ -1,4 +1,4 @@
-"""Pre-images against a learned subspace (nldr.preimage, RobustKernelPCA.inverse_transform / complete).
+"""Pre-images against a learned subspace (nldr._preimage, RobustKernelPCA.inverse_transform / complete).
 
 Tolerances come from the maths: central finite differences have O(h^2) error; a training sample's
 feature vector lies in the span of a model that keeps every positive eigenpair, so the squared feature
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from sklearn.exceptions import NotFittedError
 
-from nldr.preimage import subspace_distance
+from nldr._preimage import subspace_distance
 from nldr.robust_kpca import RobustKernelPCA
 
 
@@ -48,8 +48,8 @@ def test_distance_gradient_matches_finite_differences(center, with_target):
 @pytest.mark.parametrize("outer_products_max", [2**22, 0])  # both ways of forming X^T diag(M) X
 @pytest.mark.parametrize("center", [True, False])
 def test_the_newton_hessian_is_the_finite_difference_of_the_gradient(center, outer_products_max, monkeypatch):
-    from nldr import preimage
-    from nldr.preimage import _distance_hessian
+    from nldr import _preimage as preimage
+    from nldr._preimage import _distance_hessian
 
     monkeypatch.setattr(preimage, "OUTER_PRODUCTS_MAX", outer_products_max)
 
@@ -117,7 +117,7 @@ def test_complete_of_a_training_row_reaches_a_stationary_point_and_the_row_where
     # r >= 0 and r = 0 at the training row (an isolated zero): a global minimiser of the hard problem.
     # The problem is not convex, so from the neighbours' mean the solver is only guaranteed a stationary
     # point no worse than the start; where it reaches r = 0 it must have found the row itself.
-    from nldr.preimage import nearest_rows
+    from nldr._preimage import nearest_rows
 
     X = data()
     model = full_rank(X)
@@ -218,7 +218,7 @@ def test_clear_errors():
 
 
 def test_huber_objective_gradient_matches_finite_differences():
-    from nldr.preimage import completion_objective
+    from nldr._preimage import completion_objective
 
     X = data()
     space = RobustKernelPCA(gamma=0.4, tau=0.5).fit(X)._subspace()
@@ -243,7 +243,7 @@ def test_huber_objective_gradient_matches_finite_differences():
 
 def test_huber_with_a_delta_above_every_residual_is_least_squares():
     # h_delta(t) = t^2 for |t| <= delta: same objective, same gradient, so the same L-BFGS path
-    from nldr.preimage import complete_rows, completion_objective
+    from nldr._preimage import complete_rows, completion_objective
 
     X = data()
     space = RobustKernelPCA(gamma=0.4, tau=0.5).fit(X)._subspace()
@@ -278,7 +278,7 @@ def test_huber_pulls_a_gross_error_back_where_least_squares_follows_it():
     # 2 delta 8 - delta^2 (r = 0), and the solver descends from the clean row (its nearest training row
     # under the Huber distance), so its answer costs no more. Least squares pays 64 at the clean row
     # and starts at the corrupted one, so its answer stays further from the clean row.
-    from nldr.preimage import completion_objective
+    from nldr._preimage import completion_objective
 
     X = data(40)
     model = full_rank(X)
@@ -295,7 +295,7 @@ def test_huber_pulls_a_gross_error_back_where_least_squares_follows_it():
 
 
 def test_each_start_average_and_its_weights():
-    from nldr.preimage import average_solutions, nearest_rows
+    from nldr._preimage import average_solutions, nearest_rows
 
     X = data(30)
     model = RobustKernelPCA(gamma=0.5, tau=0.5).fit(X)
@@ -324,8 +324,8 @@ def test_each_start_average_and_its_weights():
 
 
 def test_huber_neighbour_distance_is_the_mean_huber_loss():
+    from nldr._preimage import nearest_rows
     from nldr.data_terms import huber_loss
-    from nldr.preimage import nearest_rows
 
     X = data(30)
     W = data(5, 3, seed=10)

@@ -20,16 +20,15 @@ from nldr.nrsfm import (
     Reconstruction,
     center_per_frame,
     initialize_cameras,
-    kernel_energy,
     random_visibility_mask,
     reconstruct,
     reprojection_error,
-    tnh_energy,
     trace_norm_heuristic,
 )
 from nldr.nrsfm._admm import robust_trace_norm_heuristic
 from nldr.nrsfm._camera_refinement import tnh_with_camera_refinement
-from nldr.nrsfm._joint_kernel import joint_kernel_multistart
+from nldr.nrsfm._joint_kernel import joint_kernel_multistart, kernel_energy
+from nldr.nrsfm._reprojection import tnh_energy
 from nldr.regularizer import minimize_regularized
 
 SCHEDULE = {"rho0": 1e-2, "rho_growth": 10.0, "rho_max": 1.0, "max_inner": 200}

@@ -9,6 +9,7 @@ import scipy.sparse as sp
 from threadpoolctl import threadpool_limits
 
 from nldr._reduced import optimal_kernel_factor
+from nldr._schedule import penalty_schedule
 from nldr._spectral import leading_eigenpairs
 from nldr.data_terms import MaskedLeastSquares
 from nldr.kernels import center_kernel, rbf_kernel
@@ -19,12 +20,7 @@ from nldr.reference.regularizer import (
     minimize_regularized_alternation,
     pre_image_step,
 )
-from nldr.regularizer import (
-    RegularizerResult,
-    minimize_regularized,
-    penalty_schedule,
-    reduced_energy,
-)
+from nldr.regularizer import RegularizerResult, minimize_regularized, reduced_energy
 from nldr.regularizer import _regularized_energy as regularized_energy
 from nldr.result import CONVERGED, MAX_ITER, SolverResult
 from nldr.robust_kpca import closed_form_rank_penalty, rank_penalty_threshold

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
+from nldr._penalty import StageInfo
 from nldr.data_terms import MaskedLeastSquares
-from nldr.regularizer import StageInfo, minimize_regularized
+from nldr.regularizer import minimize_regularized
 from nldr.result import CONVERGED, INACCURATE
 
 KW = dict(gamma=0.5, tau=0.1, rho0=1.0, rho_growth=10.0, rho_max=100.0)

@@ -11,12 +11,13 @@ from protocol import REPO, SNAKEMAKE, quick_config
 
 import nldr.datasets as datasets
 from nldr._baselines import mean_impute
+from nldr._schedule import penalty_schedule
 from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import DataError, load_oil, load_oil_rows
 from nldr.experiments._table2 import random_mask
 from nldr.experiments.base import float_counts
 from nldr.kernels import d_med_width
-from nldr.regularizer import LONG_SOLVE_ROWS, minimize_regularized, penalty_schedule
+from nldr.regularizer import LONG_SOLVE_ROWS, minimize_regularized
 from nldr.result import INACCURATE
 
 # --------------------------------------------------------------------------------------------------
@@ -175,6 +176,7 @@ def test_complex_data_and_an_all_false_mask_are_refused():
 # Data directory and loader contracts
 
 
+@pytest.mark.realdata
 def test_a_data_dir_that_is_a_file_falls_back_to_the_mirror_or_says_what_to_fix(tmp_path, monkeypatch):
     afile = tmp_path / "not-a-folder"
     afile.write_text("")
@@ -190,6 +192,7 @@ def test_a_data_dir_that_is_a_file_falls_back_to_the_mirror_or_says_what_to_fix(
         load_oil("train")
 
 
+@pytest.mark.realdata
 def test_an_unwritable_data_dir_falls_back_to_the_mirror(tmp_path, monkeypatch):
     """Permissions cannot be taken from root, so the refusal is simulated where the OS would raise it."""
 

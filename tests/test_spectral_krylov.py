@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
+from nldr._reduced import KRYLOV_AUTO_FRACTION
 from nldr._reduced import RankHint as _RankHint
 from nldr._spectral import KRYLOV_MAX_FRACTION, krylov_eigenpairs, leading_eigenpairs
 from nldr.data_terms import MaskedLeastSquares
 from nldr.kernels import rbf_kernel
-from nldr.regularizer import KRYLOV_AUTO_FRACTION, minimize_regularized, reduced_energy
+from nldr.regularizer import minimize_regularized, reduced_energy
 from nldr.robust_kpca import closed_form_rank_penalty, rank_penalty_threshold
 
 

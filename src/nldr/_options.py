@@ -60,7 +60,7 @@ class _StoppingOptions:
     stage_tol : float > 0 or None, default None
         ``tol`` of every stage but the last; None means ``tol``.
     isolation_guard : bool, default True
-        Start the schedule at ``max(rho0, isolation_safe_rho0(tau))`` (module :mod:`nldr.regularizer`).
+        Start the schedule at ``max(rho0, isolation_safe_rho0(tau))`` (module :mod:`nldr._schedule`).
     scale : float > 0 or None, default None
         The length unit of the stopping tests, in the units of S (energies in ``scale**2``); None
         means ``sqrt(rho0)`` (see :func:`nldr.regularizer.minimize_regularized`).

@@ -22,7 +22,7 @@ import scipy.sparse as sp
 
 from ._validation import as_float_matrix, check_magnitude, check_masked_matrix, check_positive
 
-__all__ = ["DataTerm", "MaskedLeastSquares", "Huber", "MaskedHuber", "huber_loss", "check_start"]
+__all__ = ["DataTerm", "MaskedLeastSquares", "Huber", "MaskedHuber", "huber_loss"]
 
 
 @runtime_checkable

@@ -27,15 +27,12 @@ import numpy as np
 
 __all__ = [
     "DataError",
-    "DataFile",
     "FILES",
     "OIL_SPLITS",
     "MOCAP_SEQUENCES",
     "default_data_dir",
     "registry",
-    "DOWNLOAD_RETRIES",
     "fetch",
-    "verify",
     "verify_present",
     "load_oil",
     "load_oil_rows",

@@ -64,9 +64,7 @@ from ._nystroem import landmark_indices, landmark_map, nystroem_factor, nystroem
 from ._options import ExactOptions, NystroemOptions, NystroemWarmOptions, solver_options
 from ._penalty import RegularizerResult, penalty_method
 from ._reduced import (
-    KRYLOV_AUTO_FRACTION,
     RankHint,
-    StageInfo,
     kernel_factor,
     lbfgs_minimize,
     lbfgs_stage,
@@ -83,14 +81,8 @@ from .kernels import center_kernel
 __all__ = [
     "RegularizerResult",
     "minimize_regularized",
-    "penalty_schedule",
     "reduced_energy",
-    "isolation_safe_rho0",
-    "penalty_method",
-    "KRYLOV_AUTO_FRACTION",
-    "LONG_SOLVE_ROWS",
     "LongSolveWarning",
-    "StageInfo",
     "ExactOptions",
     "NystroemOptions",
     "NystroemWarmOptions",

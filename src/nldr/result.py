@@ -70,4 +70,3 @@ def status_from(converged: bool) -> int:
     return CONVERGED if converged else MAX_ITER
 
 
-__all__.append("status_from")

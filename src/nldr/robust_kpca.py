@@ -19,7 +19,8 @@ import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from ._spectral import EIGENSOLVERS, check_eigensolver, cubic_threshold, leading_eigenpairs, shrink, spectrum
+from ._preimage import LOSSES, Subspace, average_solutions, complete_from_starts, nearest_rows, preimage
+from ._spectral import check_eigensolver, cubic_threshold, leading_eigenpairs, shrink, spectrum
 from ._threads import blas_threads_for
 from ._validation import (
     check_count,
@@ -29,10 +30,8 @@ from ._validation import (
     check_symmetric_kernel,
 )
 from .kernels import center_cross_kernel, center_kernel, rbf_kernel
-from .preimage import LOSSES, Subspace, average_solutions, complete_from_starts, nearest_rows, preimage
 
 __all__ = [
-    "EIGENSOLVERS",
     "rank_penalty_threshold",
     "shrink_eigenvalues",
     "closed_form_rank_penalty",
@@ -254,7 +253,7 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
             For each row z, a local minimiser of the feature-space distance ||phi(x) - mu - sum_i a_i
             e_i||^2 with a_i = z_i sqrt(lambda_i) / l_i (the point of the subspace that ``transform``
             mapped to z), started at the training sample whose coordinates are nearest to z
-            (:mod:`nldr.preimage`). Unlike scikit-learn's ``KernelPCA``, no regression is learned: the
+            (:mod:`nldr._preimage`). Unlike scikit-learn's ``KernelPCA``, no regression is learned: the
             pre-image is computed.
         """
         check_is_fitted(self)
@@ -303,7 +302,7 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
 
         Starts. The problem is not convex, so the answer is a local minimum. The neighbours are the
         ``n_neighbors`` training rows nearest on the observed entries (mean loss l over them,
-        :func:`nldr.preimage.nearest_rows`). ``starts="mean"``: one start, the missing entries at the
+        :func:`nldr._preimage.nearest_rows`). ``starts="mean"``: one start, the missing entries at the
         neighbours' mean. ``starts="each"``: the problem is solved from each neighbour and the local
         minima are averaged (``weights`` "uniform", or "distance": by inverse root-mean loss); when
         many entries are missing, several branches of the manifold agree with the observed ones, one
@@ -368,7 +367,7 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         Same parameters as :meth:`complete`. Returns ``(solutions, distance)``: solutions, shape
         (m, k, n_features_in_), the solution from the j-th nearest training row (nearest first), and
         distance, shape (m, k), that row's mean loss on the observed entries (k = min(n_neighbors,
-        n_samples)). ``nldr.preimage.average_solutions(solutions[:, :j], distance[:, :j], weights)``
+        n_samples)). ``nldr._preimage.average_solutions(solutions[:, :j], distance[:, :j], weights)``
         is ``complete(..., n_neighbors=j, starts="each", weights=weights)`` for any j <= k: up to
         rounding with ``rho=None`` (each row is solved on its own), up to the solver's tolerance with a
         finite rho (rows are solved in blocks that share L-BFGS's stopping test).

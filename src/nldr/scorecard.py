@@ -36,7 +36,7 @@ from collections.abc import Mapping, Sequence
 
 import pandas as pd
 
-__all__ = ["KINDS", "SCORE_COLUMNS", "score", "counts", "to_markdown"]
+__all__ = ["score", "counts", "to_markdown"]
 
 KINDS = ("rel", "at_most_rel", "within_sd", "at_most_sd", "range_or_rel", "none")
 SCORE_COLUMNS = [

@@ -12,7 +12,7 @@ import math
 
 import pandas as pd
 
-__all__ = ["TABLE_COLUMNS", "STYLE", "attach_paper", "to_csv", "to_markdown", "to_html", "to_latex"]
+__all__ = ["TABLE_COLUMNS", "attach_paper", "to_csv", "to_markdown", "to_html", "to_latex"]
 
 TABLE_COLUMNS = ["setting", "method", "metric", "value", "paper"]
 

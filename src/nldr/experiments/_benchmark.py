@@ -43,7 +43,7 @@ from sklearn.impute import SimpleImputer
 
 from .._baselines._masked import observed_standardisation
 from ..datasets import load_oil
-from ..impute import baseline_grid
+from ..impute._grids import baseline_grid
 from ..model_selection import HoldoutSearch
 from ._missingness import draw_mask
 from .base import Experiment, Job, JobOutput, summary_stats

@@ -37,7 +37,8 @@ import numpy as np
 import pandas as pd
 
 from ..datasets import load_oil
-from ..impute import KernelRegularizerImputer, baseline_grid
+from ..impute import KernelRegularizerImputer
+from ..impute._grids import baseline_grid
 from ..model_selection import HoldoutSearch, RobustScaleDelta, median_gamma
 from ._table2 import random_mask
 from .base import Experiment, Job, JobOutput, summary_stats

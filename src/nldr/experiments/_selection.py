@@ -27,8 +27,8 @@ from sklearn.base import clone
 
 from .. import paper as paper_numbers
 from ..datasets import load_oil
-from ..impute import KernelRegularizerImputer, baseline_grid
-from ..impute._grids import MISSFOREST_TREES
+from ..impute import KernelRegularizerImputer
+from ..impute._grids import MISSFOREST_TREES, baseline_grid
 from ..model_selection import HoldoutSearch, median_gamma
 from ._table2 import PEER_ROWS, Table2, peer_label, random_mask
 from .base import Job, JobOutput, summary_stats

@@ -26,8 +26,7 @@ from sklearn.impute import SimpleImputer
 from .. import paper as paper_numbers
 from .._validation import as_float_matrix
 from ..datasets import load_oil, load_oil_rows
-from ..impute import baseline_grid
-from ..impute._grids import MISSFOREST_TREES
+from ..impute._grids import MISSFOREST_TREES, baseline_grid
 from ..model_selection import HoldoutSearch
 from .base import Experiment, Job, JobOutput, summary_stats
 

@@ -20,7 +20,6 @@ The mean baseline is scikit-learn's ``SimpleImputer``; ``KNNImputer`` and ``Iter
 scikit-learn's, used as they are.
 """
 
-from ._grids import baseline_grid
 from ._kernel_pca import PKPCAImputer, RKPCAImputer
 from ._linear import PPCAImputer, RobustPCAImputer, SoftImputer
 from ._manifold import Reconstruction, RobustKernelPCAImputer
@@ -37,5 +36,4 @@ __all__ = [
     "SoftImputer",
     "RobustPCAImputer",
     "Reconstruction",
-    "baseline_grid",
 ]

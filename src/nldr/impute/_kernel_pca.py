@@ -2,7 +2,7 @@
 (probabilistic kernel PCA, Sanguinetti & Lawrence 2006) and :class:`RKPCAImputer` (robust kernel
 PCA, Nguyen & De la Torre 2008). Both solve with the outer loop of :mod:`nldr._baselines._lbfgs` and
 complete new rows the same way: the missing entries minimise the feature-space distance to the
-fitted principal subspace (:func:`nldr.preimage.complete_rows`), from the mean of the five training
+fitted principal subspace (:func:`nldr._preimage.complete_rows`), from the mean of the five training
 rows nearest on the observed entries.
 """
 
@@ -12,9 +12,9 @@ import numpy as np
 
 from .._baselines import pkpca_impute, rkpca_impute
 from .._baselines._masked import mean_fill
+from .._preimage import Subspace, complete_from_starts, nearest_rows
 from .._validation import check_positive
 from ..kernels import center_kernel, rbf_kernel, squared_distances
-from ..preimage import Subspace, complete_from_starts, nearest_rows
 from ._base import MaskedImputerBase
 
 __all__ = ["PKPCAImputer", "RKPCAImputer"]
@@ -33,7 +33,7 @@ def _median_gamma(W: np.ndarray, mask: np.ndarray) -> float:
 
 
 def _subspace(X: np.ndarray, gamma: float, q: int, centred: bool) -> Subspace:
-    """The q leading axes of the (centred) RBF kernel of complete X, in :mod:`nldr.preimage`'s form."""
+    """The q leading axes of the (centred) RBF kernel of complete X, in :mod:`nldr._preimage`'s form."""
     K = rbf_kernel(X, gamma)
     column_means = K.mean(axis=0) if centred else None
     lam, U = np.linalg.eigh(center_kernel(K) if centred else K)
@@ -104,7 +104,7 @@ class PKPCAImputer(_KernelBaseline):
     n_components_ : int, q of the final model
     result_ : nldr._baselines.PKPCAResult
     completed_ : array, shape (n_samples, n_features)
-    subspace_ : nldr.preimage.Subspace, the fitted principal subspace (uncentred)
+    subspace_ : nldr._preimage.Subspace, the fitted principal subspace (uncentred)
     n_features_in_ : int
 
     See Also
@@ -189,7 +189,7 @@ class RKPCAImputer(_KernelBaseline):
     n_components_ : int, q of the final subspace
     result_ : nldr._baselines.RKPCAResult
     completed_ : array, shape (n_samples, n_features)
-    subspace_ : nldr.preimage.Subspace, the fitted principal subspace (centred)
+    subspace_ : nldr._preimage.Subspace, the fitted principal subspace (centred)
     n_features_in_ : int
 
     See Also

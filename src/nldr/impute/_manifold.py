@@ -17,9 +17,9 @@ import numpy as np
 from sklearn.base import BaseEstimator, OneToOneFeatureMixin, TransformerMixin, clone
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .._preimage import LOSSES, average_solutions
 from .._spectral import check_eigensolver
 from .._validation import check_count, check_positive
-from ..preimage import LOSSES, average_solutions
 from ..robust_kpca import RobustKernelPCA
 from ._base import MaskedImputerBase
 

@@ -1,13 +1,13 @@
 """New rows against :class:`~nldr.impute.KernelRegularizerImputer`'s fitted manifold: the principal
-subspace in :mod:`nldr.preimage`'s form, and the row-fold search of ``transform``'s knobs."""
+subspace in :mod:`nldr._preimage`'s form, and the row-fold search of ``transform``'s knobs."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from .._preimage import Subspace
 from ..kernels import center_kernel, rbf_kernel
 from ..model_selection import HoldoutSearch
-from ..preimage import Subspace
 
 __all__ = ["NoComponentsError", "regularizer_subspace", "row_folds", "search_transform_knobs"]
 

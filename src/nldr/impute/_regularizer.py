@@ -9,11 +9,11 @@ from sklearn.utils import check_random_state
 
 from .._baselines._masked import mean_fill, observed_standardisation
 from .._options import ExactOptions, NystroemOptions, last_stage_only, solver_options
+from .._preimage import Subspace, average_solutions, complete_from_starts, nearest_rows
 from .._validation import check_count, check_positive
 from ..data_terms import MaskedHuber, MaskedLeastSquares
 from ..kernels import squared_distances
 from ..model_selection import HoldoutSearch
-from ..preimage import Subspace, average_solutions, complete_from_starts, nearest_rows
 from ..regularizer import LONG_SOLVE_ROWS, minimize_regularized
 from ._base import MaskedImputerBase
 from ._new_rows import NoComponentsError, regularizer_subspace, row_folds, search_transform_knobs
@@ -232,7 +232,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
     ``K_ij = exp(-gamma ||s_i - s_j||^2)``, by the penalty method on rho from mean imputation. The
     estimate of a training row is the solve's S, whose observed entries also move slightly (the data
     term is a penalty); ``transform`` keeps the observed entries of new rows and moves the missing
-    ones to the pre-image nearest the learnt subspace (:mod:`nldr.preimage`).
+    ones to the pre-image nearest the learnt subspace (:mod:`nldr._preimage`).
 
     Examples
     --------
@@ -506,7 +506,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         return MaskedLeastSquares(Z, mask)
 
     def _subspace(self) -> Subspace:
-        """The principal subspace spanned by C's rows, in the form :mod:`nldr.preimage` takes (built
+        """The principal subspace spanned by C's rows, in the form :mod:`nldr._preimage` takes (built
         once per solve)."""
         space = getattr(self, "_space", None)
         if space is None:

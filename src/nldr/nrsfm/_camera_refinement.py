@@ -346,7 +346,8 @@ def tnh_camera_search(
     -------
     CameraShapeResult
         The alternation kept (a copy of ``start`` if none was better) with ``fun`` its TNH energy
-        (:func:`~nldr.nrsfm.tnh_energy`), ``message`` followed by the search's, ``search`` the record.
+        (:func:`~nldr.nrsfm._reprojection.tnh_energy`), ``message`` followed by the search's,
+        ``search`` the record.
     """
     tau = check_positive(tau, "tau")
     max_rounds = check_count(max_rounds, "max_rounds")

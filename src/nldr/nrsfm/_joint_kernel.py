@@ -43,11 +43,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._penalty import RegularizerResult, penalty_method
 from .._reduced import RankHint, kernel_factor, lbfgs_minimize, reduced_value_grad
+from .._schedule import isolation_safe_rho0, penalty_schedule
 from .._threads import blas_threads_for
 from .._validation import check_count, check_positive
 from ..data_terms import huber_loss
-from ..regularizer import RegularizerResult, isolation_safe_rho0, penalty_method, penalty_schedule
 from ._reprojection import check_cameras, check_shapes, check_tracks
 from ._rotations import complete_rotations, quaternion_rotation
 

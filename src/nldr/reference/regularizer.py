@@ -38,17 +38,14 @@ import scipy.sparse as sp
 from scipy.optimize import least_squares
 from scipy.sparse.linalg import LinearOperator, aslinearoperator
 
+from .._penalty import RegularizerResult, penalty_method
 from .._reduced import optimal_kernel_factor
+from .._schedule import penalty_schedule
 from .._spectral import check_eigensolver, spectrum
 from .._validation import as_float_matrix, check_count, check_positive
 from ..data_terms import DataTerm, check_start
 from ..kernels import center_kernel, rbf_kernel, rbf_kernel_vjp
-from ..regularizer import (
-    RegularizerResult,
-    penalty_method,
-    penalty_schedule,
-    reduced_energy,
-)
+from ..regularizer import reduced_energy
 
 __all__ = [
     "minimize_regularized_alternation",
