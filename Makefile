@@ -1,11 +1,12 @@
-# Two-command quickstart: `make reproduce` (rebuild every table and figure) and `make test`.
+# Two-command quickstart: `make reproduce` (rebuild every table and figure) and `make test` (the unit
+# tests); `make test-all` is the whole suite, as CI runs it.
 # Both create the virtual environment in .venv when it is missing and install the project into it.
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 CORES ?= all
 
-.PHONY: setup reproduce quick scale future benchmark test cluster-test mutants lint dryrun bench docs clean
+.PHONY: setup reproduce quick scale future benchmark test test-all cluster-test mutants lint dryrun bench docs clean
 
 $(BIN)/.installed: pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -31,7 +32,10 @@ future: setup  ## the paper's future work, not in the paper: robust data term, n
 benchmark: setup  ## not in the paper: our defaults against tuned peers on six data sets, MCAR/MAR/MNAR (REPRODUCTION.md#benchmark)
 	$(BIN)/snakemake --cores $(CORES) benchmark
 
-test: setup  ## the whole test suite (pipeline tests use config/quick.yaml)
+test: setup  ## the unit tests: no Snakemake run, no data files (a few minutes)
+	$(BIN)/python -m pytest -m "not pipeline and not realdata"
+
+test-all: setup  ## the whole suite: unit, pipeline (Snakemake on config/quick.yaml) and real-data tests; what CI runs
 	$(BIN)/python -m pytest
 
 cluster-test: setup  ## (root) table1 and table3 on a one-node SLURM started here, byte-compared with a local run

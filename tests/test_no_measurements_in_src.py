@@ -52,7 +52,12 @@ def offending_lines(text: str, label: str = "<text>") -> list[str]:
 
 
 def _source_files():
-    return sorted(p for p in SRC.rglob("*") if p.is_file() and "__pycache__" not in p.parts)
+    """The library's files as committed: not ``__pycache__`` nor the install's ``*.egg-info`` (which
+    copies the README)."""
+    return sorted(
+        p for p in SRC.rglob("*")
+        if p.is_file() and not any(part == "__pycache__" or part.endswith(".egg-info") for part in p.parts)
+    )  # fmt: skip
 
 
 def test_src_states_no_measurements_or_issue_numbers():
