@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from conftest import nuclear_norm, project, synthetic_sequence
 
-from nldr.nrsfm import trace_norm_heuristic
 from nldr.nrsfm._cvxpy_tnh import CvxpyTNH
 from nldr.nrsfm._layout import random_visibility_mask, stack_to_rows
 from nldr.nrsfm._metrics import e3d
+from nldr.nrsfm._reconstruct import trace_norm_heuristic
 from nldr.nrsfm._reprojection import OrthographicReprojection
 from nldr.result import CONVERGED, MAX_ITER
 
@@ -27,11 +27,11 @@ CLARABEL_TIGHT = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10}
 
 
 def admm(W, R, mask=None, **options):
-    return trace_norm_heuristic(W, R, mask, method="admm", **options)
+    return trace_norm_heuristic(W, mask, R, method="admm", **options)
 
 
 def clarabel(W, R, mask=None, solver_options=None):
-    return trace_norm_heuristic(W, R, mask, method="cvxpy", solver="CLARABEL", solver_options=solver_options)
+    return trace_norm_heuristic(W, mask, R, method="cvxpy", solver="CLARABEL", solver_options=solver_options)
 
 
 def null_space_component(Y, R, mask):
@@ -150,7 +150,7 @@ def test_admm_iteration_cap_warm_start_and_method_spelling():
     assert warm.nuclear_norm == pytest.approx(cold.nuclear_norm, rel=2e-6)
     # the default method, spelled any case (the pipeline's config says "ADMM"), with explicit options
     for method in ({}, {"method": "ADMM"}, {"method": "Admm"}):
-        via = trace_norm_heuristic(W, R, tau=0.0, tol=1e-6, max_iter=50_000, **method)
+        via = trace_norm_heuristic(W, None, R, tau=0.0, tol=1e-6, max_iter=50_000, **method)
         assert via.method == "admm" and via.nit == cold.nit
         np.testing.assert_array_equal(via.x, cold.x)
 
@@ -197,9 +197,9 @@ def test_admm_input_errors():
         warnings.simplefilter("error")
         assert admm(W_nan, R, hidden).status == CONVERGED
     with pytest.raises(ValueError, match="exact-fit form only"):
-        trace_norm_heuristic(W, R, tau=0.1, method="admm")
+        trace_norm_heuristic(W, None, R, tau=0.1, method="admm")
     with pytest.raises(ValueError, match=r"unknown options for method 'admm': \['eps_abs'\]"):
-        trace_norm_heuristic(W, R, eps_abs=1e-6)
+        trace_norm_heuristic(W, None, R, eps_abs=1e-6)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -215,7 +215,7 @@ def test_real_data_admm_matches_scs_pickup(data_dir, missing):
     F, P = seq.n_frames, seq.n_points
     W2d, X_gt = stack_to_rows(seq.W, 2), stack_to_rows(seq.S)
     mask = None if missing == 0 else random_visibility_mask(F, P, missing, random_state=2016)
-    admm = trace_norm_heuristic(W2d, seq.R, mask)
+    admm = trace_norm_heuristic(W2d, mask, seq.R)
     scs = CvxpyTNH(W2d, seq.R, mask).solve(solver="SCS")
     assert admm.status == CONVERGED and admm.max_abs_residual < 1e-9 * np.abs(W2d).max()
     e_admm, e_scs = e3d(admm.x, X_gt, P), e3d(scs.x, X_gt, P)

@@ -654,7 +654,7 @@ def test_tune_tau_validates():
 def test_every_nrsfm_solver_result_is_a_solver_result():
     """x, fun, status, message, nit and wall_time everywhere; success means status CONVERGED; the repr
     is one line."""
-    from nldr.nrsfm import trace_norm_heuristic
+    from nldr.nrsfm._reconstruct import trace_norm_heuristic
     from nldr.nrsfm._tnh import fista_tnh
     from nldr.result import STATUS_NAMES, SolverResult
 
@@ -663,7 +663,7 @@ def test_every_nrsfm_solver_result_is_a_solver_result():
     R0 = perturb_cameras(R_true, 5.0, np.random.default_rng(41))
     W3 = W.reshape(F, 2, P)
     results = [
-        trace_norm_heuristic(W, R_true),
+        trace_norm_heuristic(W, None, R_true),
         fista_tnh(W3, None, R_true, np.zeros((F, 3, P)), 0.0, 1.0, 50, 1e-10),
         rigid_factorization(W),
         tnh_with_camera_refinement(W, None, R0, 1.0, max_outer=3),

@@ -10,10 +10,11 @@ import pytest
 from conftest import nuclear_norm, project, random_rotation, synthetic_sequence
 
 from nldr.data_terms import DataTerm
-from nldr.nrsfm import TNHSolveError, trace_norm_heuristic
+from nldr.nrsfm import TNHSolveError
 from nldr.nrsfm._cvxpy_tnh import CvxpyTNH
 from nldr.nrsfm._layout import random_visibility_mask, stack_to_rows
 from nldr.nrsfm._metrics import center_per_frame, e3d, e3d_per_frame, ground_truth_sigma, procrustes_rotation
+from nldr.nrsfm._reconstruct import trace_norm_heuristic
 from nldr.nrsfm._reprojection import OrthographicReprojection, visibility_weights
 from nldr.nrsfm._tnh import fista_tnh
 from nldr.result import CONVERGED, MAX_ITER
@@ -225,7 +226,7 @@ def test_tnh_exact_fit_reprojects_and_has_minimal_nuclear_norm(missing):
     X, W, R = synthetic_sequence(n_frames=12, n_points=9, rank=3, seed=12)
     F, P = X.shape[0], X.shape[1] // 3
     mask = random_visibility_mask(F, P, missing, random_state=12)
-    result = trace_norm_heuristic(W, R, mask, method="cvxpy")
+    result = trace_norm_heuristic(W, mask, R, method="cvxpy")
     assert result.success and result.exact_fit and result.tau == 0.0 and result.solver == "SCS"
     assert result.method == "cvxpy" and result.status == CONVERGED and "optimal" in result.message
     assert result.x.shape == X.shape
@@ -238,7 +239,7 @@ def test_tnh_exact_fit_reprojects_and_has_minimal_nuclear_norm(missing):
     assert result.fun == pytest.approx(result.nuclear_norm, rel=1e-5)
     assert result.wall_time > 0 and result.nit > 0 and result.solver_time is not None
     # the default method (ADMM) solves the same problem
-    admm = trace_norm_heuristic(W, R, mask)
+    admm = trace_norm_heuristic(W, mask, R)
     assert admm.method == "admm" and admm.success
     assert admm.nuclear_norm == pytest.approx(result.nuclear_norm, rel=1e-5)
 
@@ -298,24 +299,24 @@ def test_tnh_errors():
     X, W, R = synthetic_sequence(n_frames=4, n_points=5, seed=16)
     for method in ("admm", "cvxpy"):
         with pytest.raises(ValueError, match="tau"):
-            trace_norm_heuristic(W, R, tau=-1.0, method=method)
+            trace_norm_heuristic(W, None, R, tau=-1.0, method=method)
     with pytest.raises(ValueError, match="method must be one of"):
-        trace_norm_heuristic(W, R, method="SCS")  # a conic solver is an option of method="cvxpy"
+        trace_norm_heuristic(W, None, R, method="SCS")  # a conic solver is an option of method="cvxpy"
     with pytest.raises(ValueError, match="solver"):
-        trace_norm_heuristic(W, R, method="cvxpy", solver="NO_SUCH_SOLVER")
+        trace_norm_heuristic(W, None, R, method="cvxpy", solver="NO_SUCH_SOLVER")
     with pytest.raises(ValueError, match="method must be one of"):
-        trace_norm_heuristic(W, R, tau=1.0, method="fista")  # the penalised form: method="cvxpy"
+        trace_norm_heuristic(W, None, R, tau=1.0, method="fista")  # the penalised form: method="cvxpy"
     with pytest.raises(ValueError, match=r"unknown options for method 'admm': \['solver'\]"):
-        trace_norm_heuristic(W, R, solver="SCS")
+        trace_norm_heuristic(W, None, R, solver="SCS")
     with pytest.raises(ValueError, match=r"unknown options for method 'cvxpy': \['tol'\]"):
-        trace_norm_heuristic(W, R, method="cvxpy", tol=1e-6)
+        trace_norm_heuristic(W, None, R, method="cvxpy", tol=1e-6)
     # a zero camera cannot reproduce non-zero image points: the exact fit is infeasible
     R_zero = R.copy()
     R_zero[0] = 0.0
     with pytest.raises(TNHSolveError, match="status"):
-        trace_norm_heuristic(W, R_zero, method="cvxpy", solver="CLARABEL")
+        trace_norm_heuristic(W, None, R_zero, method="cvxpy", solver="CLARABEL")
     with pytest.raises(ValueError, match="no exact fit exists"):
-        trace_norm_heuristic(W, R_zero)
+        trace_norm_heuristic(W, None, R_zero)
 
 
 def test_tnh_cvxpy_is_optional(monkeypatch):
@@ -326,8 +327,8 @@ def test_tnh_cvxpy_is_optional(monkeypatch):
     monkeypatch.setitem(sys.modules, "cvxpy", None)  # import cvxpy now raises ImportError
     monkeypatch.delitem(sys.modules, "nldr.nrsfm._cvxpy_tnh", raising=False)
     with pytest.raises(ImportError, match=r"pip install nldr\[cvxpy\]"):
-        trace_norm_heuristic(W, R, method="cvxpy")
-    assert trace_norm_heuristic(W, R).success
+        trace_norm_heuristic(W, None, R, method="cvxpy")
+    assert trace_norm_heuristic(W, None, R).success
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -349,7 +350,7 @@ def test_real_data_reprojects_exactly_with_ground_truth_cameras():
 def test_real_data_tnh_exact_fit_pickup():
     seq = load_real("pickup").subsample(10)
     P = seq.n_points
-    result = trace_norm_heuristic(stack_to_rows(seq.W, 2), seq.R, method="cvxpy")
+    result = trace_norm_heuristic(stack_to_rows(seq.W, 2), None, seq.R, method="cvxpy")
     # paper Table 3: 0.0487; this implementation measures 0.0475 (benchmarks/bench_tnh.py)
     assert e3d(result.x, stack_to_rows(seq.S), P) == pytest.approx(0.0475, abs=5e-4)
 
@@ -390,7 +391,7 @@ def test_proximal_tnh_meets_the_optimality_condition_and_matches_cvxpy(tau):
         minus_grad - U @ (U.T @ minus_grad) - (minus_grad @ Vt.T) @ Vt + U @ (U.T @ minus_grad @ Vt.T) @ Vt
     )
     assert np.linalg.norm(outside, 2) <= tau * (1 + 1e-5)
-    reference = trace_norm_heuristic(noisy, R, mask, tau=tau, method="cvxpy", solver="CLARABEL")
+    reference = trace_norm_heuristic(noisy, mask, R, tau=tau, method="cvxpy", solver="CLARABEL")
     assert res.fun <= reference.fun * (1 + 1e-6)
     assert res.fun == pytest.approx(penalised_objective(term, reference.x, tau), rel=1e-5)
 

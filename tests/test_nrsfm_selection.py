@@ -18,10 +18,10 @@ from nldr.nrsfm import (
     reprojection_error,
     select_kernel,
     select_tnh_tau,
-    trace_norm_heuristic,
 )
 from nldr.nrsfm._camera_refinement import tnh_with_camera_refinement
 from nldr.nrsfm._layout import visibility_folds
+from nldr.nrsfm._reconstruct import trace_norm_heuristic
 from nldr.nrsfm._rotations import quaternion_rotation
 from nldr.regularizer import minimize_regularized
 
@@ -140,7 +140,7 @@ def test_kernel_scores_are_the_hand_computed_fold_solves_and_the_refit_is_the_so
         errors = []
         for hidden in folds:
             train = mask & ~hidden
-            X0 = trace_norm_heuristic(W, R, train).x
+            X0 = trace_norm_heuristic(W, train, R).x
             res = minimize_regularized(
                 OrthographicReprojection(W, R, train), X0, gamma=d_med_width(X0), tau=tau, **SCHEDULE
             )
@@ -149,7 +149,7 @@ def test_kernel_scores_are_the_hand_computed_fold_solves_and_the_refit_is_the_so
         assert row["mean_test_error"] == pytest.approx(np.mean(errors), rel=1e-12)
         assert row["std_test_error"] == pytest.approx(np.std(errors, ddof=1), rel=1e-9)
     assert sel.tau_ == taus[int(np.argmin(sel.cv_results_["mean_test_error"]))]
-    X0 = trace_norm_heuristic(W, R, mask).x
+    X0 = trace_norm_heuristic(W, mask, R).x
     refit = minimize_regularized(
         OrthographicReprojection(W, R, mask),
         X0,
@@ -285,7 +285,7 @@ def test_depth_scale_runs_folds_and_refit_in_camera_frame_variables():
     errors = []
     for hidden in visibility_folds(mask, 2, random_state=0):
         train = mask & ~hidden
-        X0 = trace_norm_heuristic(W, R, train).x
+        X0 = trace_norm_heuristic(W, train, R).x
         res = minimize_regularized(
             OrthographicReprojection(W, R, train),
             X0,
@@ -296,7 +296,7 @@ def test_depth_scale_runs_folds_and_refit_in_camera_frame_variables():
         )
         errors.append(holdout_reprojection_error(W, hidden, R, res.x))
     assert sel.cv_results_["mean_test_error"].iloc[0] == pytest.approx(np.mean(errors), rel=1e-12)
-    X0 = trace_norm_heuristic(W, R, mask).x
+    X0 = trace_norm_heuristic(W, mask, R).x
     refit = minimize_regularized(
         OrthographicReprojection(W, R, mask),
         X0,

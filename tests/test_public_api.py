@@ -51,7 +51,7 @@ PUBLIC = {
         "CameraFrameVariables", "NRSfMSelection", "OrthographicReprojection", "Reconstruction", "TNHResult",
         "TNHSolveError", "camera_error", "center_per_frame", "e3d", "initialize_cameras",
         "random_visibility_mask", "reconstruct", "reprojection_error", "select_kernel", "select_tnh_tau",
-        "stack_to_rows", "trace_norm_heuristic",
+        "stack_to_rows",
     ],
     "nldr.paper": ["TABLE1", "TABLE2", "TABLE3", "TABLE4", "paper_frame"],
     "nldr.plotting": ["figure1", "figure3"],

@@ -23,11 +23,11 @@ from nldr.nrsfm import (
     random_visibility_mask,
     reconstruct,
     reprojection_error,
-    trace_norm_heuristic,
 )
 from nldr.nrsfm._admm import robust_trace_norm_heuristic
 from nldr.nrsfm._camera_refinement import tnh_with_camera_refinement
 from nldr.nrsfm._joint_kernel import joint_kernel_multistart, kernel_energy
+from nldr.nrsfm._reconstruct import trace_norm_heuristic
 from nldr.nrsfm._reprojection import tnh_energy
 from nldr.regularizer import minimize_regularized
 
@@ -47,7 +47,7 @@ def scene():
 def test_known_cameras_tnh_and_kernel_are_their_solvers(scene):
     W, R, mask = scene
     tnh = reconstruct(W, mask, cameras=R)
-    ref = trace_norm_heuristic(W, R, mask)
+    ref = trace_norm_heuristic(W, mask, R)
     assert isinstance(tnh, Reconstruction) and tnh.prior == "tnh" and tnh.tau == 0.0
     np.testing.assert_array_equal(tnh.x, ref.x)
     np.testing.assert_array_equal(tnh.R, R)
@@ -100,7 +100,7 @@ def test_estimated_cameras_kernel_is_the_multistart_and_returns_the_other_width(
 def test_huber_loss_starts_from_the_robust_tnh(scene):
     W, R, mask = scene
     robust = reconstruct(W, mask, cameras=R, loss="huber", tau=0.05)
-    ref = robust_trace_norm_heuristic(W, R, mask, tau=0.05)
+    ref = robust_trace_norm_heuristic(W, mask, R, tau=0.05)
     np.testing.assert_array_equal(robust.x, ref.x)
     rec = reconstruct(
         W, mask, cameras=R, prior="kernel", loss="huber", delta=0.1, tnh={"tau": 0.05}, **SCHEDULE

@@ -15,7 +15,8 @@ from protocol import REPO, SNAKEMAKE, quick_config, quick_results, run_snakemake
 
 from nldr.data_terms import MaskedLeastSquares
 from nldr.kernels import rbf_kernel
-from nldr.nrsfm import OrthographicReprojection, trace_norm_heuristic
+from nldr.nrsfm import OrthographicReprojection
+from nldr.nrsfm._reconstruct import trace_norm_heuristic
 from nldr.regularizer import minimize_regularized
 from nldr.robust_kpca import closed_form_rank_penalty
 
@@ -252,7 +253,7 @@ def test_a_frame_with_no_observed_point_stays_finite():
     mask[5] = False  # frame 5 shows nothing
     with pytest.warns(UserWarning, match=r"frames \[5\] have no visible point"):
         term = OrthographicReprojection(W2d, R, mask)
-    tnh = trace_norm_heuristic(W2d, R, mask, tau=1e-2, method="cvxpy")
+    tnh = trace_norm_heuristic(W2d, mask, R, tau=1e-2, method="cvxpy")
     res = minimize_regularized(term, tnh.x, gamma=0.1, tau=1e-4, rho0=1e-3, rho_max=10.0)
     assert _finite(tnh.x, res.x)
 

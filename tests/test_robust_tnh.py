@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 from conftest import synthetic_sequence
 
-from nldr.nrsfm import OrthographicReprojection, trace_norm_heuristic
+from nldr.nrsfm import OrthographicReprojection
 from nldr.nrsfm._admm import robust_trace_norm_heuristic
 from nldr.nrsfm._layout import random_visibility_mask
+from nldr.nrsfm._reconstruct import trace_norm_heuristic
 from nldr.nrsfm._tnh import TNHResult
 from nldr.result import CONVERGED
 
@@ -60,7 +61,7 @@ def cvxpy_robust_tnh(W, R, mask, tau):
 @pytest.mark.parametrize(("missing", "tau"), [(0.0, 1.0), (0.3, 0.5), (0.0, 3.0)])
 def test_robust_tnh_matches_cvxpy(missing, tau):
     _, W, R, mask = corrupted_problem(missing)
-    res = robust_trace_norm_heuristic(W, R, mask, tau=tau, tol=TOL, max_iter=200_000)
+    res = robust_trace_norm_heuristic(W, mask, R, tau=tau, tol=TOL, max_iter=200_000)
     X_ref, f_ref = cvxpy_robust_tnh(W, R, mask, tau)
     assert isinstance(res, TNHResult) and res.method == "admm_l1"
     assert res.status == CONVERGED and res.success
@@ -82,7 +83,7 @@ def test_dual_certificate_is_feasible():
     its dual value is the lower bound."""
     _, W, R, mask = corrupted_problem(0.3)
     tau = 0.7
-    res = robust_trace_norm_heuristic(W, R, mask, tau=tau, tol=1e-7)
+    res = robust_trace_norm_heuristic(W, mask, R, tau=tau, tol=1e-7)
     mu = res.dual
     F, P = mask.shape
     mask2 = np.concatenate([mask, mask], axis=1)
@@ -97,19 +98,19 @@ def test_small_tau_gives_the_exact_fit_and_large_tau_rejects_outliers():
     """tau -> 0: the l1 term forces the exact fit (the exact-fit TNH's nuclear norm); at a moderate tau
     the displaced coordinates carry the residual and the clean ones are fit (sparse residuals)."""
     X, W, R, mask = corrupted_problem(0.0, n_frames=20, n_points=10, share=0.05)
-    exact = trace_norm_heuristic(W, R, mask, tol=1e-9)
-    small = robust_trace_norm_heuristic(W, R, mask, tau=1e-3, tol=1e-9, max_iter=100_000)
+    exact = trace_norm_heuristic(W, mask, R, tol=1e-9)
+    small = robust_trace_norm_heuristic(W, mask, R, tau=1e-3, tol=1e-9, max_iter=100_000)
     assert l1_error(W, R, mask, small.x) <= 1e-6 * np.abs(np.nan_to_num(W)).sum()
     assert small.nuclear_norm == pytest.approx(exact.nuclear_norm, rel=1e-5)
-    robust = robust_trace_norm_heuristic(W, R, mask, tau=2.0, tol=1e-8, max_iter=100_000)
+    robust = robust_trace_norm_heuristic(W, mask, R, tau=2.0, tol=1e-8, max_iter=100_000)
     assert l1_error(W, R, mask, robust.x) > 0 and robust.nuclear_norm < exact.nuclear_norm
 
 
 def test_scale_free():
     """Tracks in other units: same tau, shapes scaled, objective scaled."""
     _, W, R, mask = corrupted_problem(0.3)
-    a = robust_trace_norm_heuristic(W, R, mask, tau=1.0, tol=1e-9, max_iter=100_000)
-    b = robust_trace_norm_heuristic(1000.0 * W, R, mask, tau=1.0, tol=1e-9, max_iter=100_000)
+    a = robust_trace_norm_heuristic(W, mask, R, tau=1.0, tol=1e-9, max_iter=100_000)
+    b = robust_trace_norm_heuristic(1000.0 * W, mask, R, tau=1.0, tol=1e-9, max_iter=100_000)
     assert b.fun == pytest.approx(1000.0 * a.fun, rel=1e-7)
     assert np.linalg.norm(b.x - 1000.0 * a.x) <= 1e-3 * np.linalg.norm(b.x)
 
@@ -117,24 +118,24 @@ def test_scale_free():
 def test_input_validation():
     _, W, R, mask = corrupted_problem(0.0)
     with pytest.raises(ValueError, match="tau"):
-        robust_trace_norm_heuristic(W, R, mask, tau=0.0)
+        robust_trace_norm_heuristic(W, mask, R, tau=0.0)
     with pytest.raises(ValueError, match="tau"):
-        robust_trace_norm_heuristic(W, R, mask, tau=-1.0)
+        robust_trace_norm_heuristic(W, mask, R, tau=-1.0)
     with pytest.raises(ValueError, match="tol must be in"):
-        robust_trace_norm_heuristic(W, R, mask, tau=1.0, tol=2.0)
+        robust_trace_norm_heuristic(W, mask, R, tau=1.0, tol=2.0)
     with pytest.raises(ValueError, match="max_iter"):
-        robust_trace_norm_heuristic(W, R, mask, tau=1.0, max_iter=0)
+        robust_trace_norm_heuristic(W, mask, R, tau=1.0, max_iter=0)
     with pytest.raises(ValueError, match="relaxation"):
-        robust_trace_norm_heuristic(W, R, mask, tau=1.0, relaxation=2.5)
+        robust_trace_norm_heuristic(W, mask, R, tau=1.0, relaxation=2.5)
     with pytest.raises(ValueError, match="X0 must have shape"):
-        robust_trace_norm_heuristic(W, R, mask, tau=1.0, X0=np.zeros((3, 3)))
+        robust_trace_norm_heuristic(W, mask, R, tau=1.0, X0=np.zeros((3, 3)))
     with pytest.raises(ValueError, match=r"R must have shape \(F, 2, 3\)"):
-        robust_trace_norm_heuristic(W, R[:, :1], mask, tau=1.0)
+        robust_trace_norm_heuristic(W, mask, R[:, :1], tau=1.0)
     with pytest.raises(ValueError, match="mask must have shape"):
-        robust_trace_norm_heuristic(W, R, mask[:, :2], tau=1.0)
+        robust_trace_norm_heuristic(W, mask[:, :2], R, tau=1.0)
     with pytest.raises(RuntimeWarning, match="max_iter"):
         import warnings
 
         with warnings.catch_warnings():
             warnings.simplefilter("error", RuntimeWarning)
-            robust_trace_norm_heuristic(W, R, mask, tau=1.0, max_iter=5)
+            robust_trace_norm_heuristic(W, mask, R, tau=1.0, max_iter=5)

@@ -166,9 +166,9 @@ def run_sequence(
         :class:`~nldr.nrsfm.CameraFrameVariables`: same minimisers, far fewer iterations; 100 is the
         measured choice). docs/REPRODUCTION.md#table-3-solver has the measurements.
     tnh_options : mapping, optional
-        ``solver`` (default "ADMM"), ``eps`` (SCS's eps_abs = eps_rel) and further solver options for
-        :func:`~nldr.nrsfm.trace_norm_heuristic` (``ADMM``: its options; else a cvxpy conic solver
-        and its ``solver_options``); unset keys take the library's defaults.
+        ``solver`` (default "ADMM"), ``eps`` (SCS's eps_abs = eps_rel) and further options of TNH with
+        known cameras (:func:`~nldr.nrsfm._reconstruct.trace_norm_heuristic`; ``ADMM``: its options;
+        else a cvxpy conic solver and its ``solver_options``); unset keys take the library's defaults.
     progress : callable, optional
         Receives one line per finished method.
     n_jobs : int, default 1

@@ -84,7 +84,7 @@ def solve_admm(
 ) -> TNHResult:
     """Exact-fit TNH ``min ||X||_* s.t. exact reprojection of the observed points`` by ADMM.
 
-    The backend of ``trace_norm_heuristic(W2d, R, mask, method="admm", **options)``, which validates
+    The backend of ``trace_norm_heuristic(W2d, visible, R, method="admm", **options)``, which validates
     the tracks, cameras (rows need not be orthonormal) and mask into ``term``. See the module docstring
     for the algorithm, the certificate and the stopping rule.
 
@@ -136,8 +136,8 @@ def solve_admm(
 
 def robust_trace_norm_heuristic(
     W2d,
+    visible,
     R,
-    mask=None,
     *,
     tau: float,
     tol: float = 1e-6,
@@ -158,9 +158,9 @@ def robust_trace_norm_heuristic(
 
     Parameters
     ----------
-    W2d, R, mask
-        Tracks (F, 2P), known cameras (F, 2, 3) and visibility (F, P) as in
-        :func:`~nldr.nrsfm.trace_norm_heuristic`.
+    W2d, visible, R
+        Tracks (F, 2P), visibility (F, P) or None (all observed) and known cameras (F, 2, 3), as in
+        :func:`~nldr.nrsfm._reconstruct.trace_norm_heuristic`.
     tau : float > 0
         Weight of ||X||_* against the l1 reprojection error (dimensionless).
     tol, max_iter, beta, relaxation, adaptive, verbose
@@ -180,10 +180,10 @@ def robust_trace_norm_heuristic(
     Raises
     ------
     ValueError
-        For malformed tracks, cameras or mask, tau <= 0, and the option errors of :func:`solve_admm`.
+        For malformed tracks, visibility or cameras, tau <= 0, and the option errors of :func:`solve_admm`.
     """
     start = time.perf_counter()
-    term = OrthographicReprojection(W2d, R, mask)  # validates tracks, cameras and mask
+    term = OrthographicReprojection(W2d, R, visible)  # validates tracks, cameras and visibility
     tau = check_positive(tau, "tau")
     options = _check_options(tol, max_iter, beta, relaxation, adaptive)
     problem = _Splitting(term, tau=tau)

@@ -63,7 +63,7 @@ _CVXPY_OPTIONS = ("solver", "solver_options", "warm_start", "verbose")
 
 
 def trace_norm_heuristic(
-    W2d, R, mask=None, *, tau: float | None = None, method: str = "admm", **options
+    W2d, visible, R, *, tau: float | None = None, method: str = "admm", **options
 ) -> TNHResult:
     """Solve TNH with known cameras (:mod:`nldr.nrsfm._tnh`), exact-fit (``tau`` None or 0) or penalised.
 
@@ -75,10 +75,10 @@ def trace_norm_heuristic(
     W2d : array, shape (F, 2P)
         Image tracks as rows (row f = x of the P points, then y), length unit of the data. Entries of
         unobserved points are ignored (they may be NaN).
+    visible : bool array, shape (F, P), or None
+        True where point j is observed in frame f (both coordinates); None: all observed.
     R : array, shape (F, 2, 3)
         Known orthographic cameras.
-    mask : bool array, shape (F, P), optional
-        True where point j is observed in frame f (both coordinates). Default: all observed.
     tau : float >= 0 or None, default None
         Weight of ||X||_* against the sum of squared reprojection errors (unit of the tracks squared).
     method : {"admm", "cvxpy"}, default "admm"
@@ -121,8 +121,8 @@ def trace_norm_heuristic(
     if name == "cvxpy":
         from ._cvxpy_tnh import CvxpyTNH  # cvxpy is optional: imported only here
 
-        return CvxpyTNH(W2d, R, mask).solve(tau, **options)
-    return solve_admm(OrthographicReprojection(W2d, R, mask), **options)  # the term validates the inputs
+        return CvxpyTNH(W2d, R, visible).solve(tau, **options)
+    return solve_admm(OrthographicReprojection(W2d, R, visible), **options)  # the term validates the inputs
 
 
 @dataclass(kw_only=True, repr=False)
@@ -203,7 +203,7 @@ def reconstruct(
     tnh : mapping, optional
         Options of the default start (e.g. ``tau`` with estimated cameras).
     **options
-        Solver options. TNH, known cameras: :func:`~nldr.nrsfm.trace_norm_heuristic`'s (``method``,
+        Solver options. TNH, known cameras: :func:`trace_norm_heuristic`'s (``method``,
         ``tol``, ...) or the robust TNH's. TNH, estimated cameras: ``max_outer``, ``tol``, ``window``
         of the alternation, ``initial_cameras`` (default: the rigid factorisation) and
         ``camera_search`` (bool, default False, or a mapping of its options such as ``max_rounds``).
@@ -244,10 +244,10 @@ def reconstruct(
         if start is not None or tnh is not None:
             raise ValueError("start and tnh are the kernel method's start; TNH takes its options directly")
         if known and loss == "huber":  # the robust TNH: l1, the Huber loss's delta -> 0 limit
-            res = robust_trace_norm_heuristic(W2d, R, vis, tau=check_positive(tau, "tau"), **options)
+            res = robust_trace_norm_heuristic(W2d, vis, R, tau=check_positive(tau, "tau"), **options)
             return _result(res, W, vis, R, tau=res.tau, gamma=np.nan, **common)
         if known:
-            res = trace_norm_heuristic(W2d, R, vis, tau=tau, **options)
+            res = trace_norm_heuristic(W2d, vis, R, tau=tau, **options)
             return _result(res, W, vis, R, tau=res.tau, gamma=np.nan, **common)
         if loss == "huber":
             raise ValueError("the robust TNH (loss='huber') needs known cameras: pass cameras=R")

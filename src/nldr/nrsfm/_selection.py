@@ -409,7 +409,7 @@ def select_kernel(
     search = search_points(W, mask, folds, estimator, grid, n_jobs, min_move=min_move, **search_rule, **path)
     best = search.best_params_
     if R is not None:  # the refit from the TNH of every observed point
-        X0 = trace_norm_heuristic(W, R, mask, **tnh_options).x if X_start is None else X_start
+        X0 = trace_norm_heuristic(W, mask, R, **tnh_options).x if X_start is None else X_start
         X0 = np.asarray(X0, dtype=np.float64)
         if X0.shape != (mask.shape[0], 3 * mask.shape[1]):
             raise ValueError(f"X_start must have shape (F, 3P) = {(mask.shape[0], 3 * mask.shape[1])}")
