@@ -67,7 +67,7 @@ def test_admm_matches_clarabel_exact_fit(missing):
     # feasible by construction: the X-iterate reprojects exactly, to rounding
     assert res.max_abs_residual < 1e-9 * scale
     assert res.reprojection_error < (1e-9 * scale) ** 2 * W.size
-    np.testing.assert_allclose(OrthographicReprojection(W, R, mask).residuals(res.x), 0.0, atol=1e-9 * scale)
+    np.testing.assert_allclose(OrthographicReprojection(W, mask, R).residuals(res.x), 0.0, atol=1e-9 * scale)
     assert res.nuclear_norm == pytest.approx(ref.nuclear_norm, rel=NUCLEAR_RTOL)
     # the certified lower bound does not exceed the reference optimum
     assert res.nuclear_norm - res.duality_gap <= ref.nuclear_norm * (1 + 1e-8)
@@ -216,7 +216,7 @@ def test_real_data_admm_matches_scs_pickup(data_dir, missing):
     W2d, X_gt = stack_to_rows(seq.W, 2), stack_to_rows(seq.S)
     mask = None if missing == 0 else random_visibility_mask(F, P, missing, random_state=2016)
     admm = trace_norm_heuristic(W2d, mask, seq.R)
-    scs = CvxpyTNH(W2d, seq.R, mask).solve(solver="SCS")
+    scs = CvxpyTNH(W2d, mask, seq.R).solve(solver="SCS")
     assert admm.status == CONVERGED and admm.max_abs_residual < 1e-9 * np.abs(W2d).max()
     e_admm, e_scs = e3d(admm.x, X_gt, P), e3d(scs.x, X_gt, P)
     assert abs(e_admm - e_scs) < 1e-3

@@ -354,7 +354,7 @@ def test_reprojection_error_matches_the_orthographic_data_term():
     rng = np.random.default_rng(13)
     mask = random_visibility_mask(F, P, 0.3, random_state=13)
     X_noisy = X + rng.standard_normal(X.shape)
-    expected = OrthographicReprojection(W, R, mask).value(X_noisy)
+    expected = OrthographicReprojection(W, mask, R).value(X_noisy)
     assert reprojection_error(hide(W, mask), mask, R, X_noisy) == pytest.approx(expected, rel=1e-12)
     assert reprojection_error(W, None, R, X) < 1e-24 * np.sum(W**2)
 

@@ -91,13 +91,13 @@ def test_kernel_energy_is_the_regularizers_energy_with_the_orthographic_data_ter
     Rp = perturb(R, 10.0, rng)
     Xp = X + 0.1 * rng.standard_normal(X.shape)
     kw = dict(gamma=0.07, tau=1e-3, rho=1.0)
-    direct, _ = reduced_energy(Xp, OrthographicReprojection(W, Rp, mask), **kw)
+    direct, _ = reduced_energy(Xp, OrthographicReprojection(W, mask, Rp), **kw)
     ours = kernel_energy(W, mask, Rp, Xp, **kw)
     assert ours == pytest.approx(direct, rel=1e-12)
     G = random_rotation(rng)
     turned = np.einsum("ij,fjp->fip", G, Xp.reshape(F, 3, P)).reshape(F, 3 * P)
     assert kernel_energy(W, mask, Rp @ G.T, turned, **kw) == pytest.approx(ours, rel=1e-10)
-    huber, _ = reduced_energy(Xp, Huber(OrthographicReprojection(W, Rp, mask), 0.3), **kw)
+    huber, _ = reduced_energy(Xp, Huber(OrthographicReprojection(W, mask, Rp), 0.3), **kw)
     assert kernel_energy(W, mask, Rp, Xp, delta=0.3, **kw) == pytest.approx(huber, rel=1e-12)
 
 
@@ -132,7 +132,7 @@ def test_joint_step_moves_the_cameras_the_alternation_leaves_in_place():
     state = {"X": X0}
 
     def kernel_shape_step(R):  # the kernel method's shape step at fixed cameras, warm-started
-        term = OrthographicReprojection(W, R, None)
+        term = OrthographicReprojection(W, None, R)
         state["X"] = minimize_regularized(term, state["X"], gamma=gamma, tau=tau, **schedule).x
         return state["X"]
 

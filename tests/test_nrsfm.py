@@ -141,7 +141,7 @@ def test_reprojection_vanishes_at_ground_truth_and_matches_loop():
     F, P = X.shape[0], X.shape[1] // 3
     mask = random_visibility_mask(F, P, 0.3, random_state=6)
     W_nan = np.where(np.concatenate([mask, mask], axis=1), W, np.nan)
-    term = OrthographicReprojection(W_nan, R, mask)
+    term = OrthographicReprojection(W_nan, mask, R)
     assert isinstance(term, DataTerm)
     assert term.shape == (F, 3 * P) and term.n_residuals == 2 * mask.sum()
     np.testing.assert_allclose(term.residuals(X), 0.0, atol=1e-12)
@@ -162,7 +162,7 @@ def test_reprojection_jacobian_and_gradient_match_finite_differences():
     X, W, R = synthetic_sequence(n_frames=5, n_points=6, seed=8)
     F, P = X.shape[0], X.shape[1] // 3
     mask = random_visibility_mask(F, P, 0.4, random_state=8)
-    term = OrthographicReprojection(W, R, mask)
+    term = OrthographicReprojection(W, mask, R)
     rng = np.random.default_rng(9)
     Y = rng.standard_normal(X.shape)
     J = term.jacobian(Y).toarray()
@@ -189,7 +189,7 @@ def test_reprojection_jacobian_and_gradient_match_finite_differences():
 def test_reprojection_jacobian_is_minus_the_projection():
     X, W, R = synthetic_sequence(n_frames=4, n_points=5, seed=10)
     R2 = R[::-1].copy()
-    term = OrthographicReprojection(W, R2)
+    term = OrthographicReprojection(W, None, R2)
     np.testing.assert_allclose(term.residuals(X), (W - project(R2, X)).ravel(), atol=1e-12)
     np.testing.assert_allclose(term.jacobian() @ X.ravel(), -project(R2, X).ravel(), atol=1e-12)
 
@@ -201,20 +201,20 @@ def test_reprojection_validation():
     W_bad = W.copy()
     W_bad[1, 2] = np.nan  # unobserved x: fine
     W_bad[1, 5 + 2] = np.nan  # unobserved y: fine
-    OrthographicReprojection(W_bad, R, mask)
+    OrthographicReprojection(W_bad, mask, R)
     W_bad[0, 0] = np.nan
     with pytest.raises(ValueError, match="W2d"):
-        OrthographicReprojection(W_bad, R, mask)
+        OrthographicReprojection(W_bad, mask, R)
     with pytest.raises(ValueError, match="W2d"):
-        OrthographicReprojection(W[:, :-1], R)
+        OrthographicReprojection(W[:, :-1], None, R)
     with pytest.raises(ValueError, match="mask"):
-        OrthographicReprojection(W, R, mask[:, :-1])
+        OrthographicReprojection(W, mask[:, :-1], R)
     with pytest.raises(ValueError, match="mask"):
-        OrthographicReprojection(W, R, np.full((4, 5), 2))
+        OrthographicReprojection(W, np.full((4, 5), 2), R)
     with pytest.raises(ValueError, match="R"):
-        OrthographicReprojection(W, R.reshape(-1, 3))
+        OrthographicReprojection(W, None, R.reshape(-1, 3))
     with pytest.raises(ValueError, match="R"):
-        OrthographicReprojection(W, R[:3])
+        OrthographicReprojection(W, None, R[:3])
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -232,7 +232,7 @@ def test_tnh_exact_fit_reprojects_and_has_minimal_nuclear_norm(missing):
     assert result.x.shape == X.shape
     scale = np.abs(W).max()
     assert result.max_abs_residual < 1e-6 * scale
-    term = OrthographicReprojection(W, R, mask)
+    term = OrthographicReprojection(W, mask, R)
     np.testing.assert_allclose(term.residuals(result.x), 0.0, atol=1e-6 * scale)
     # the ground truth is feasible, so the minimum nuclear norm cannot exceed its nuclear norm
     assert result.nuclear_norm <= nuclear_norm(X) * (1 + 1e-6)
@@ -248,7 +248,7 @@ def test_tnh_scs_agrees_with_clarabel():
     X, W, R = synthetic_sequence(n_frames=10, n_points=8, rank=3, seed=13)
     F, P = X.shape[0], X.shape[1] // 3
     mask = random_visibility_mask(F, P, 0.5, random_state=13)
-    tnh = CvxpyTNH(W, R, mask)
+    tnh = CvxpyTNH(W, mask, R)
     for tau in (None, 0.3):
         scs = tnh.solve(tau, solver="SCS")
         clarabel = tnh.solve(tau, solver="CLARABEL")
@@ -268,7 +268,7 @@ def test_tnh_penalised_optimality_and_sweep():
     F, P = X.shape[0], X.shape[1] // 3
     mask = random_visibility_mask(F, P, 0.3, random_state=14)
     noisy = W + 0.05 * np.random.default_rng(14).standard_normal(W.shape)
-    tnh = CvxpyTNH(noisy, R, mask)
+    tnh = CvxpyTNH(noisy, mask, R)
     term = tnh.data_term
     exact = tnh.solve()
     results = [tnh.solve(0.1)]
@@ -340,7 +340,7 @@ def test_real_data_reprojects_exactly_with_ground_truth_cameras():
     seq = load_real("pickup").subsample(10)
     P = seq.n_points
     assert (seq.n_frames, P) == (36, 41)
-    term = OrthographicReprojection(stack_to_rows(seq.W, 2), seq.R)
+    term = OrthographicReprojection(stack_to_rows(seq.W, 2), None, seq.R)
     X_gt = stack_to_rows(seq.S)
     assert np.max(np.abs(term.residuals(X_gt))) < 1e-12 * np.abs(seq.W).max()
     assert e3d(X_gt, X_gt, P) == 0.0
@@ -379,7 +379,7 @@ def test_proximal_tnh_meets_the_optimality_condition_and_matches_cvxpy(tau):
     noisy = W + 0.05 * np.random.default_rng(21).standard_normal(W.shape)
     res = fista(noisy, R, mask, tau=tau, tol=1e-14, max_iter=50_000)
     assert res.success and res.status == CONVERGED and res.method == "fista" and not res.exact_fit
-    term = OrthographicReprojection(noisy, R, mask)
+    term = OrthographicReprojection(noisy, mask, R)
     assert res.fun == pytest.approx(penalised_objective(term, res.x, tau), rel=1e-12)
     assert res.max_abs_residual == pytest.approx(np.abs(term.residuals(res.x)).max(), rel=1e-12)
     minus_grad = -term.gradient(res.x)

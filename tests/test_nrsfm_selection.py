@@ -142,7 +142,7 @@ def test_kernel_scores_are_the_hand_computed_fold_solves_and_the_refit_is_the_so
             train = mask & ~hidden
             X0 = trace_norm_heuristic(W, train, R).x
             res = minimize_regularized(
-                OrthographicReprojection(W, R, train), X0, gamma=d_med_width(X0), tau=tau, **SCHEDULE
+                OrthographicReprojection(W, train, R), X0, gamma=d_med_width(X0), tau=tau, **SCHEDULE
             )
             errors.append(holdout_reprojection_error(W, hidden, R, res.x))
         row = sel.cv_results_[sel.cv_results_["tau"] == tau].iloc[0]
@@ -151,7 +151,7 @@ def test_kernel_scores_are_the_hand_computed_fold_solves_and_the_refit_is_the_so
     assert sel.tau_ == taus[int(np.argmin(sel.cv_results_["mean_test_error"]))]
     X0 = trace_norm_heuristic(W, mask, R).x
     refit = minimize_regularized(
-        OrthographicReprojection(W, R, mask),
+        OrthographicReprojection(W, mask, R),
         X0,
         gamma=sel.width_multiple_ * d_med_width(X0),
         tau=sel.tau_,
@@ -287,7 +287,7 @@ def test_depth_scale_runs_folds_and_refit_in_camera_frame_variables():
         train = mask & ~hidden
         X0 = trace_norm_heuristic(W, train, R).x
         res = minimize_regularized(
-            OrthographicReprojection(W, R, train),
+            OrthographicReprojection(W, train, R),
             X0,
             gamma=d_med_width(X0),
             tau=1e-3,
@@ -298,7 +298,7 @@ def test_depth_scale_runs_folds_and_refit_in_camera_frame_variables():
     assert sel.cv_results_["mean_test_error"].iloc[0] == pytest.approx(np.mean(errors), rel=1e-12)
     X0 = trace_norm_heuristic(W, mask, R).x
     refit = minimize_regularized(
-        OrthographicReprojection(W, R, mask),
+        OrthographicReprojection(W, mask, R),
         X0,
         gamma=d_med_width(X0),
         tau=1e-3,

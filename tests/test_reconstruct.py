@@ -57,7 +57,7 @@ def test_known_cameras_tnh_and_kernel_are_their_solvers(scene):
         W, mask, cameras=R, prior="kernel", width="d_max", start=tnh, depth_scale=10.0, **SCHEDULE
     )
     by_hand = minimize_regularized(
-        OrthographicReprojection(W, R, mask), ref.x, gamma=d_max_width(ref.x), tau=1e-4,
+        OrthographicReprojection(W, mask, R), ref.x, gamma=d_max_width(ref.x), tau=1e-4,
         variables=CameraFrameVariables(R, mask, 10.0), **SOLVER,
     )  # fmt: skip
     np.testing.assert_array_equal(kernel.x, by_hand.x)
@@ -106,7 +106,7 @@ def test_huber_loss_starts_from_the_robust_tnh(scene):
         W, mask, cameras=R, prior="kernel", loss="huber", delta=0.1, tnh={"tau": 0.05}, **SCHEDULE
     )
     by_hand = minimize_regularized(
-        Huber(OrthographicReprojection(W, R, mask), 0.1),
+        Huber(OrthographicReprojection(W, mask, R), 0.1),
         ref.x,
         gamma=d_med_width(ref.x),
         tau=1e-4,

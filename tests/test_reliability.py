@@ -252,7 +252,7 @@ def test_a_frame_with_no_observed_point_stays_finite():
     mask = rng.random((F, P)) > 0.3
     mask[5] = False  # frame 5 shows nothing
     with pytest.warns(UserWarning, match=r"frames \[5\] have no visible point"):
-        term = OrthographicReprojection(W2d, R, mask)
+        term = OrthographicReprojection(W2d, mask, R)
     tnh = trace_norm_heuristic(W2d, mask, R, tau=1e-2, method="cvxpy")
     res = minimize_regularized(term, tnh.x, gamma=0.1, tau=1e-4, rho0=1e-3, rho_max=10.0)
     assert _finite(tnh.x, res.x)
@@ -350,16 +350,16 @@ def test_reprojection_rejects_transposed_shapes_and_empty_visibility():
     rng = np.random.default_rng(1)
     F, P = 6, 3  # 3P = 9 != F, so X.T has the same size but not the same shape
     W2d, R = rng.standard_normal((F, 2 * P)), np.tile(np.eye(3)[:2], (F, 1, 1))
-    term = OrthographicReprojection(W2d, R)
+    term = OrthographicReprojection(W2d, None, R)
     X = rng.standard_normal((F, 3 * P))
     with pytest.raises(ValueError, match=r"X must have shape \(F, 3P\)"):
         term.gradient(X.T.copy().reshape(3 * P, F))
     with pytest.raises(ValueError, match="no visible point"):
-        OrthographicReprojection(W2d, R, np.zeros((F, P), dtype=bool))
+        OrthographicReprojection(W2d, np.zeros((F, P), dtype=bool), R)
     mask = np.ones((F, P), dtype=bool)
     mask[2] = False
     with pytest.warns(UserWarning, match=r"frames \[2\] have no visible point"):
-        OrthographicReprojection(W2d, R, mask)
+        OrthographicReprojection(W2d, mask, R)
 
 
 def test_robust_kpca_warns_when_tau_removes_every_component():
@@ -385,4 +385,4 @@ def test_non_finite_observed_data_is_refused_by_every_data_term(bad):
     W2d, R = rng.standard_normal((4, 6)), np.tile(np.eye(3)[:2], (4, 1, 1))
     W2d[2, 1] = bad
     with pytest.raises(ValueError, match="W2d has NaN or infinite values at observed entries"):
-        OrthographicReprojection(W2d, R)
+        OrthographicReprojection(W2d, None, R)

@@ -36,7 +36,7 @@ def _nrsfm_term(seed=1, F=4, P=5):
     W2d = rng.standard_normal((F, 2 * P))
     mask = rng.random((F, P)) > 0.2
     mask[:, 0] = True
-    return OrthographicReprojection(W2d, R, mask), rng.standard_normal((F, 3 * P))
+    return OrthographicReprojection(W2d, mask, R), rng.standard_normal((F, 3 * P))
 
 
 def _fd_gradient(fun, S, h=1e-6):

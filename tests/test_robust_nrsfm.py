@@ -76,7 +76,7 @@ def test_huber_kernel_starts_from_the_robust_tnh(monkeypatch):
     assert hub.tau == rows.loc[rows["method"] == "Kernel (Huber)", "tau"].item()
     assert hub_kw["max_inner"] == 200  # the Huber block's own regularizer options apply
     tau_r = robust_tnh_tau((12, 24), 0.6)
-    corrupted = OrthographicReprojection(hub_args[0], R)  # the displaced tracks the Huber solve saw
+    corrupted = OrthographicReprojection(hub_args[0], None, R)  # the displaced tracks the Huber solve saw
     delta, tau = huber_kernel_parameters(corrupted, robust.x, tau_r, hub.gamma, 1.345, 1.0)
     assert (delta, tau) == (hub.delta, hub.tau)
     # the saved arrays: one reconstruction per method, and which coordinates were displaced
@@ -87,7 +87,7 @@ def test_huber_kernel_starts_from_the_robust_tnh(monkeypatch):
 
 def test_huber_kernel_parameters_follow_their_definition():
     X, W, R = small_case()
-    term = OrthographicReprojection(W, R)
+    term = OrthographicReprojection(W, None, R)
     rng = np.random.default_rng(0)
     start = X + 0.01 * rng.standard_normal(X.shape)
     gamma = 0.05

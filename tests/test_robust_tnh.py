@@ -37,7 +37,7 @@ def corrupted_problem(missing=0.0, seed=4, n_frames=10, n_points=6, share=0.15):
 
 def l1_error(W, R, mask, X):
     """Sum of absolute reprojection residuals of X over the observed coordinates."""
-    return float(np.abs(OrthographicReprojection(W, R, mask).residuals(X)).sum())
+    return float(np.abs(OrthographicReprojection(W, mask, R).residuals(X)).sum())
 
 
 def robust_objective(W, R, mask, X, tau):
@@ -47,7 +47,7 @@ def robust_objective(W, R, mask, X, tau):
 
 def cvxpy_robust_tnh(W, R, mask, tau):
     """The same problem written directly in cvxpy: tau ||X||_* + || b + J vec(X) ||_1 (r = b + J x)."""
-    term = OrthographicReprojection(W, R, mask)
+    term = OrthographicReprojection(W, mask, R)
     J = term.jacobian()
     b = term.residuals(np.zeros(term.shape))
     X = cp.Variable(term.shape)

@@ -39,7 +39,7 @@ def test_the_data_term_sees_only_the_unscaled_image_plane_coordinates(problem):
     seq, W2d, mask = problem
     F, P = mask.shape
     A = CameraFrameVariables(seq.R, mask, depth_scale=100.0)
-    data_term = OrthographicReprojection(W2d, seq.R, mask)
+    data_term = OrthographicReprojection(W2d, mask, seq.R)
     rng = np.random.default_rng(1)
     Y = rng.standard_normal((F, 3 * P))
     Y2 = Y.reshape(F, 3, P).copy()
@@ -69,7 +69,7 @@ def test_bad_input_is_rejected(problem, args, match):
 
 def test_the_solver_refuses_variables_with_landmarks_or_without_the_methods(problem):
     seq, W2d, mask = problem
-    data_term = OrthographicReprojection(W2d, seq.R, mask)
+    data_term = OrthographicReprojection(W2d, mask, seq.R)
     A = CameraFrameVariables(seq.R, mask, 100.0)
     S0 = np.zeros(data_term.shape)
     with pytest.raises(ValueError, match="variables"):

@@ -131,7 +131,7 @@ def run_displaced(
     rows, arrays = [], {}
     for share in shares:
         Wc, displaced = corrupted[share]
-        term = OrthographicReprojection(Wc, R, mask)
+        term = OrthographicReprojection(Wc, mask, R)
         shapes = {}
 
         def record(

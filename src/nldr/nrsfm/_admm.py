@@ -183,7 +183,7 @@ def robust_trace_norm_heuristic(
         For malformed tracks, visibility or cameras, tau <= 0, and the option errors of :func:`solve_admm`.
     """
     start = time.perf_counter()
-    term = OrthographicReprojection(W2d, R, visible)  # validates tracks, cameras and visibility
+    term = OrthographicReprojection(W2d, visible, R)  # validates tracks, cameras and visibility
     tau = check_positive(tau, "tau")
     options = _check_options(tol, max_iter, beta, relaxation, adaptive)
     problem = _Splitting(term, tau=tau)

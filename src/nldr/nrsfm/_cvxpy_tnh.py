@@ -46,9 +46,9 @@ class CvxpyTNH:
 
     Parameters
     ----------
-    W2d, R, mask
-        Tracks (F, 2P), known cameras (F, 2, 3) and visibility (F, P), as in
-        :func:`~nldr.nrsfm.trace_norm_heuristic`.
+    W2d, visible, R
+        Tracks (F, 2P), visibility (F, P) or None (all observed) and known cameras (F, 2, 3), as in
+        :func:`~nldr.nrsfm._reconstruct.trace_norm_heuristic`.
 
     Attributes
     ----------
@@ -59,13 +59,13 @@ class CvxpyTNH:
 
     Examples
     --------
-    >>> tnh = CvxpyTNH(W2d, R, mask)                      # doctest: +SKIP
+    >>> tnh = CvxpyTNH(W2d, visible, R)                   # doctest: +SKIP
     >>> exact = tnh.solve()                                # tau -> 0: exact reprojection
     >>> sweep = [tnh.solve(tau) for tau in (1e-2, 1e-1)]  # compiled once, re-solved
     """
 
-    def __init__(self, W2d, R, mask=None):
-        self.data_term = OrthographicReprojection(W2d, R, mask)
+    def __init__(self, W2d, visible, R):
+        self.data_term = OrthographicReprojection(W2d, visible, R)
         F, threeP = self.data_term.shape
         # r(X) = b - A vec(X): A = -J (constant), b = observed image coordinates.
         A = -self.data_term.jacobian()

@@ -121,8 +121,8 @@ def trace_norm_heuristic(
     if name == "cvxpy":
         from ._cvxpy_tnh import CvxpyTNH  # cvxpy is optional: imported only here
 
-        return CvxpyTNH(W2d, R, visible).solve(tau, **options)
-    return solve_admm(OrthographicReprojection(W2d, R, visible), **options)  # the term validates the inputs
+        return CvxpyTNH(W2d, visible, R).solve(tau, **options)
+    return solve_admm(OrthographicReprojection(W2d, visible, R), **options)  # the term validates the inputs
 
 
 @dataclass(kw_only=True, repr=False)
@@ -277,7 +277,7 @@ def reconstruct(
     if known:
         depth_scale = options.pop("depth_scale", None)
         variables = None if depth_scale is None else CameraFrameVariables(R, vis, depth_scale)
-        term = OrthographicReprojection(W, R, vis)
+        term = OrthographicReprojection(W, vis, R)
         res = minimize_regularized(
             term if delta is None else Huber(term, delta), X0, gamma=gamma, tau=tau, variables=variables,
             **solver_arguments(options),

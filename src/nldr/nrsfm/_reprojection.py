@@ -56,10 +56,10 @@ class OrthographicReprojection:
     W2d : array, shape (F, 2P)
         Image tracks as rows: row f is (x_f1..x_fP, y_f1..y_fP), in the length unit of the shapes.
         Entries of unobserved points are ignored (they may be NaN).
+    visible : bool array, shape (F, P), or None
+        True where point j is observed in frame f (both coordinates); None: all observed.
     R : array, shape (F, 2, 3)
         Orthographic cameras: w_f(x_j) = R_f s_f(x_j).
-    mask : bool array, shape (F, P), optional
-        True where point j is observed in frame f (both coordinates). Default: all observed.
 
     Attributes
     ----------
@@ -73,8 +73,8 @@ class OrthographicReprojection:
         2 x number of observed (frame, point) pairs.
     """
 
-    def __init__(self, W2d, R, mask=None):
-        W, mask = check_tracks(W2d, mask, min_points=0)
+    def __init__(self, W2d, visible, R):
+        W, mask = check_tracks(W2d, visible, min_points=0)
         F, P = mask.shape
         mask2 = np.concatenate([mask, mask], axis=1)  # (F, 2P), same layout as W2d
         if not mask.any():
