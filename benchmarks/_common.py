@@ -5,7 +5,8 @@
   not reach a BLAS loaded later (scipy brings its own OpenBLAS), so the scripts rely on the variable
   and warn when it is not 1.
 - :func:`timed`: the median of repeated calls by ``time.perf_counter`` (wall) or
-  ``time.process_time`` (CPU of this process, for a machine shared with other jobs).
+  ``time.process_time`` (CPU of this process, for a machine shared with other jobs);
+  :func:`cpu_and_wall`: both of one call.
 - :func:`parser` and :func:`common_options`: ``--out`` (the folder the CSVs go to), ``--data-dir``,
   ``--repeats`` where a script repeats its timings, ``--quick`` (the smallest configuration, a smoke
   run).
@@ -55,6 +56,13 @@ def timed(fn: Callable[[], object], repeats: int = 1, clock: str = "wall") -> tu
         out = fn()
         seconds.append(tick() - start)
     return statistics.median(seconds), out
+
+
+def cpu_and_wall(fn: Callable[[], object]) -> tuple[float, float, object]:
+    """``(CPU seconds, wall seconds, result)`` of one call."""
+    cpu, wall = time.process_time(), time.perf_counter()
+    out = fn()
+    return time.process_time() - cpu, time.perf_counter() - wall, out
 
 
 def common_options(parser: argparse.ArgumentParser, *, repeats: int | None = None) -> argparse.ArgumentParser:
