@@ -41,7 +41,6 @@ from __future__ import annotations
 import cProfile
 import io
 import pstats
-import time
 
 import numpy as np
 import pandas as pd
@@ -188,11 +187,7 @@ def run_eigensolver(args) -> None:
 
 def profile(fn, path, title: str, top: int = 18) -> float:
     prof = cProfile.Profile()
-    start = time.perf_counter()
-    prof.enable()
-    fn()
-    prof.disable()
-    wall = time.perf_counter() - start
+    wall, _ = timed(lambda: prof.runcall(fn))
     out = io.StringIO()
     out.write(f"{title}\nwall time {wall:.3f} s (under cProfile)\n\n== by own time ==\n")
     pstats.Stats(prof, stream=out).strip_dirs().sort_stats("tottime").print_stats(top)

@@ -49,11 +49,13 @@ from _common import check_blas, parser, write_csv
 SETTINGS = ("1", "2", "default")
 
 CHILD = r"""
-import json, sys, time
+import json, sys
 import numpy as np
 setting, n, repeats = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 data_dir = sys.argv[4] or None
-from threadpoolctl import threadpool_info, threadpool_limits
+sys.path.insert(0, sys.argv[5])  # benchmarks/, for _common
+from _common import cpu_and_wall
+from threadpoolctl import threadpool_limits
 from nldr.datasets import load_oil_rows
 from nldr.experiments._table2 import random_mask
 from nldr.impute import KernelRegularizerImputer
@@ -66,7 +68,6 @@ kw = {}
 if n >= 1000:  # two penalty stages, few inner iterations: the full problem's matrices, fewer steps
     kw = {"schedule": {"rho0": 1.0, "rho_max": 10.0}, "options": {"max_inner": 15}}
 model = KernelRegularizerImputer(random_state=0, **kw)  # the same landmarks in every fit
-seen = set()
 if setting == "default":
     chosen = _threads.blas_threads(n)
     limit = None
@@ -74,9 +75,7 @@ else:
     chosen = int(setting)
     limit = threadpool_limits(chosen, user_api="blas")
 for _ in range(repeats):
-    wall0, cpu0 = time.perf_counter(), time.process_time()
-    X_hat = model.fit_transform(W)
-    wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
+    cpu, wall, X_hat = cpu_and_wall(lambda: model.fit_transform(W))
     sse = float(np.sum((X_hat - X) ** 2))
     if setting == "default":
         chosen = _threads.blas_threads(n)
@@ -100,7 +99,8 @@ def run_case(setting: str, n: int, repeats: int, cap: float, data_dir) -> list[d
     env = {k: v for k, v in os.environ.items() if not k.startswith(drop)}
     if setting != "default":
         env["NLDR_AUTO_THREADS"] = "0"
-    cmd = [sys.executable, "-c", CHILD, setting, str(n), str(repeats), data_dir or ""]
+    here = os.path.dirname(os.path.abspath(__file__))
+    cmd = [sys.executable, "-c", CHILD, setting, str(n), str(repeats), data_dir or "", here]
     try:
         out = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True, timeout=cap).stdout
     except subprocess.TimeoutExpired as exc:
