@@ -355,7 +355,7 @@ def main(argv=None):
     sol.add_argument("--clarabel-timeout", type=float, default=120.0)
     sol.set_defaults(run=run_solvers)
 
-    pro = common_options(sub.add_parser("protocol", help="readings of '50 % missing' against the paper"))
+    pro = common_options(sub.add_parser("protocol", help="readings of '50 %% missing' against the paper"))
     pro.add_argument("--n-masks", type=int, default=5)
     pro.add_argument("--seed", type=int, default=2016)
     pro.add_argument("--readings", nargs="+", default=list(READINGS), choices=READINGS)
