@@ -4,7 +4,8 @@ One completion per case: ``KernelRegularizerImputer(random_state=0)`` (defaults 
 columns, the hold-out search of width and tau, then the solver path ``method="auto"`` picks by
 size: exact up to 150 rows, the Nystroem warm start up to 1499, every stage on 200 landmarks from
 1500; a fixed ``random_state``, so that every fit is the same computation) on the first n oil-flow
-rows (train, then validation, then test split) with 25 % of the entries missing (mask seed 2016).
+rows (train, then validation, then test split) with 25 % of the entries missing (Table 2's mask of
+seed 2016, :func:`nldr.experiments._table2.random_mask`, private: the pipeline's masks).
 From 1000 rows the penalty schedule of every solve (the search's and the final one) is cut to two
 stages (rho 1 and 10) of at most 15 inner iterations, to keep the benchmark cheap on a shared
 machine; the matrices, hence what a thread buys per operation, are the full problem's. The search's
