@@ -10,7 +10,8 @@ session).
 its own hold-out tuning included in its CPU seconds), ``paper`` (the paper's Table 2 settings written
 out: raw columns, gamma 0.075, tau 0.1, exact) and ``missForest100`` (100 trees, its
 ``max_features`` in {1/3, 1} chosen by :class:`nldr.model_selection.HoldoutSearch` over
-:func:`nldr.impute.baseline_grid` on ``--folds`` folds, seed = the mask's seed, refitted). Appends one
+the pipeline's grid (:func:`nldr.impute._grids.baseline_grid`, private: the tables' own search
+grids) on ``--folds`` folds, seed = the mask's seed, refitted). Appends one
 row per (mask, method) to ``--out``/defaults.csv (rows already there are skipped), then prints mean,
 sample sd and count of the SSE per (rows, p, method).
 
@@ -33,7 +34,7 @@ masks at each p: ``method="exact"`` against ``"nystroem-warm"`` (100 landmarks, 
 ``transform``: fit on the 1000 training rows (complete), then complete the first 200 validation rows
 with a share p of their entries hidden (mask seed 2016 + k): SSE on the hidden entries of ours and of
 scikit-learn's ``KNNImputer`` (its defaults, and its ``n_neighbors``/``weights`` chosen by the
-hold-out search of :func:`nldr.impute.baseline_grid` on the training rows with the same share
+hold-out search of ``baseline_grid`` on the training rows with the same share
 hidden), and ours' milliseconds per new row.
 
 ``ard``: per-column widths, chosen by the hold-out error. ARD is the RBF kernel
@@ -68,8 +69,9 @@ from sklearn.impute import KNNImputer
 
 from nldr.datasets import load_oil, load_oil_rows
 from nldr.experiments._table2 import random_mask
-from nldr.impute import KernelRegularizerImputer, baseline_grid
+from nldr.impute import KernelRegularizerImputer
 from nldr.impute import _regularizer as tuning
+from nldr.impute._grids import baseline_grid
 from nldr.model_selection import HoldoutSearch, holdout_folds
 
 METHODS = ("default", "paper", "missForest100")

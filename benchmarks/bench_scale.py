@@ -20,7 +20,8 @@ Methods (``--methods``, default ``Ours``):
   q = 9), for reference;
 - the peers ``KNNImputer``, ``IterativeImputer``, ``SoftImpute``, ``missForest``, their knob chosen by
   :class:`nldr.model_selection.HoldoutSearch` on ``--folds`` hold-out folds of the observed entries
-  (seed = the mask's seed) over :func:`nldr.impute.baseline_grid`, then refitted on every observed
+  (seed = the mask's seed) over the pipeline's grids (:func:`nldr.impute._grids.baseline_grid`,
+  private: the tables' own search grids, imported so that these are the same), then refitted on every observed
   entry (``cpu`` counts the search and the refit, ``cpu_fit`` one fit at the chosen knob);
   IterativeImputer has no knob and is fitted once.
 
@@ -50,7 +51,8 @@ from sklearn.base import clone
 
 from nldr.datasets import load_oil_rows
 from nldr.experiments._table2 import random_mask
-from nldr.impute import KernelRegularizerImputer, PPCAImputer, baseline_grid
+from nldr.impute import KernelRegularizerImputer, PPCAImputer
+from nldr.impute._grids import baseline_grid
 from nldr.model_selection import HoldoutSearch
 
 PEERS = ("KNNImputer", "IterativeImputer", "SoftImpute", "missForest")
