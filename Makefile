@@ -51,10 +51,13 @@ lint: setup
 dryrun: setup
 	$(BIN)/snakemake -n
 
+# bench: the routine speed check, BLAS on one thread. Writes to results/benchmarks/: closed_form.csv and
+# closed_form_fraction.csv (closed form against eigh), solvers.csv (full against auto eigensolver),
+# profile_table2.txt and profile_table3.txt (cProfile of one Table 2 and one Table 3 solve).
 bench: setup  ## speed benchmarks, CSVs in results/benchmarks/ (docs/PERFORMANCE.md)
-	$(BIN)/python benchmarks/bench_closed_form.py
-	$(BIN)/python benchmarks/bench_solvers.py
-	$(BIN)/python benchmarks/profile_solvers.py
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python benchmarks/bench_closed_form.py
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python benchmarks/bench_solvers.py eigensolver
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python benchmarks/bench_solvers.py profile
 
 docs: setup  ## the documentation site in site/ (API from the docstrings, notebooks); warnings are errors
 	$(BIN)/mkdocs build --strict

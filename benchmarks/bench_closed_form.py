@@ -1,7 +1,8 @@
 """Benchmark: the closed-form robust KPCA against the eigendecomposition it needs.
 
-Usage: python benchmarks/bench_closed_form.py [N ...] [--fraction-n N] [--fractions F ...]
-(default N = 100 200 300 500 1000 2000 3000 5000; --fraction-n 1000)
+Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_closed_form.py [N ...] [--fraction-n N]
+[--fractions F ...] (default N = 100 200 300 500 1000 2000 3000 5000; --fraction-n 1000; ``--quick``:
+N = 100 300, --fraction-n 300)
 
 Part 1, by size. On the same centred RBF kernel (N points of a 12-dimensional standard normal,
 gamma = 0.075; tau = rho = 1, so the cubic's threshold is 1.5) it times, median over repeats:
@@ -14,40 +15,25 @@ gamma = 0.075; tau = rho = 1, so the cubic's threshold is 1.5) it times, median 
 
 ``ratio_needed`` = closed form / the decomposition it uses (partial for N >= 300), ``ratio_full`` =
 closed form / the full ``eigh``. The small sizes show where the partial decomposition starts to pay
-(``nldr._spectral.PARTIAL_MIN_N``). Writes results/benchmarks/closed_form.csv.
+(``nldr._spectral.PARTIAL_MIN_N``). Writes ``--out``/closed_form.csv.
 
 Part 2, by kept fraction. At N = ``--fraction-n``, tau is set so that a given fraction of the
 eigenvalues passes the threshold, and the full and partial decompositions are timed: where the partial
 one stops paying as the fraction grows (``nldr._spectral.PARTIAL_MAX_FRACTION``). Writes
-results/benchmarks/closed_form_fraction.csv.
+``--out``/closed_form_fraction.csv.
 
-BLAS is pinned to 1 thread so the figures do not depend on what else runs.
+Wall seconds (``time.perf_counter``), median over repeats, BLAS on one thread.
 """
 
 from __future__ import annotations
 
-import argparse
-import time
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
 import scipy.linalg
-from threadpoolctl import threadpool_limits
+from _common import check_blas, parser, timed, write_csv
 
 from nldr.kernels import center_kernel, rbf_kernel
 from nldr.robust_kpca import closed_form_rank_penalty, rank_penalty_threshold
-
-OUT = Path("results/benchmarks")
-
-
-def median_time(fn, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return float(np.median(times))
 
 
 def kernel(rng, n: int) -> np.ndarray:
@@ -66,12 +52,10 @@ def by_size(sizes: list[int]) -> pd.DataFrame:
         K = kernel(rng, n)
         repeats = 20 if n <= 300 else 5 if n <= 1000 else 3
         k = scipy.linalg.eigh(K, subset_by_value=(threshold, np.inf), eigvals_only=True).size
-        t_full = median_time(lambda K=K: np.linalg.eigh(K), repeats)
-        t_part = median_time(lambda K=K: partial_eigh(K, threshold), repeats)
-        t_cf = median_time(lambda K=K: closed_form_rank_penalty(K, 1.0, 1.0), repeats)
-        t_cf_full = median_time(
-            lambda K=K: closed_form_rank_penalty(K, 1.0, 1.0, eigensolver="full"), repeats
-        )
+        t_full, _ = timed(lambda K=K: np.linalg.eigh(K), repeats)
+        t_part, _ = timed(lambda K=K: partial_eigh(K, threshold), repeats)
+        t_cf, _ = timed(lambda K=K: closed_form_rank_penalty(K, 1.0, 1.0), repeats)
+        t_cf_full, _ = timed(lambda K=K: closed_form_rank_penalty(K, 1.0, 1.0, eigensolver="full"), repeats)
         needed = t_part if n >= 300 else t_full
         rows.append(
             {
@@ -97,7 +81,7 @@ def by_fraction(n: int, fractions: list[float]) -> pd.DataFrame:
     K = kernel(np.random.default_rng(1), n)
     lam = np.linalg.eigvalsh(K)[::-1]
     repeats = 5 if n <= 1000 else 3
-    t_full = median_time(lambda: np.linalg.eigh(K), repeats)
+    t_full, _ = timed(lambda: np.linalg.eigh(K), repeats)
     rows = []
     for fraction in fractions:
         k = max(1, int(round(fraction * n)))
@@ -105,7 +89,7 @@ def by_fraction(n: int, fractions: list[float]) -> pd.DataFrame:
         # threshold = 3 (b^2 / 2)^(1/3) with b = tau / (2 rho), rho = 1
         tau = 2.0 * np.sqrt(2.0 * (threshold / 3.0) ** 3)
         assert np.isclose(rank_penalty_threshold(tau, 1.0), threshold)
-        t_part = median_time(lambda threshold=threshold: partial_eigh(K, threshold), repeats)
+        t_part, _ = timed(lambda threshold=threshold: partial_eigh(K, threshold), repeats)
         rows.append(
             {"n": n, "k": k, "fraction": k / n, "tau": tau, "eigh_full_s": t_full, "eigh_partial_s": t_part}
         )
@@ -114,17 +98,16 @@ def by_fraction(n: int, fractions: list[float]) -> pd.DataFrame:
 
 
 def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(
-        description=__doc__.splitlines()[0], formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("sizes", nargs="*", type=int, default=[100, 200, 300, 500, 1000, 2000, 3000, 5000])
-    parser.add_argument("--fraction-n", type=int, default=1000, help="N of the kept-fraction sweep")
-    parser.add_argument("--fractions", nargs="+", type=float, default=[0.05, 0.1, 0.2, 0.25, 0.3, 0.4, 0.6])
-    args = parser.parse_args(argv)
-    OUT.mkdir(parents=True, exist_ok=True)
-    with threadpool_limits(1):
-        by_size(args.sizes).to_csv(OUT / "closed_form.csv", index=False)
-        by_fraction(args.fraction_n, args.fractions).to_csv(OUT / "closed_form_fraction.csv", index=False)
+    ap = parser(__doc__)
+    ap.add_argument("sizes", nargs="*", type=int, default=[100, 200, 300, 500, 1000, 2000, 3000, 5000])
+    ap.add_argument("--fraction-n", type=int, default=1000, help="N of the kept-fraction sweep")
+    ap.add_argument("--fractions", nargs="+", type=float, default=[0.05, 0.1, 0.2, 0.25, 0.3, 0.4, 0.6])
+    args = ap.parse_args(argv)
+    if args.quick:
+        args.sizes, args.fraction_n = [100, 300], 300
+    check_blas()
+    write_csv(by_size(args.sizes), args.out, "closed_form.csv")
+    write_csv(by_fraction(args.fraction_n, args.fractions), args.out, "closed_form_fraction.csv")
 
 
 if __name__ == "__main__":

@@ -1,125 +1,383 @@
-"""The imputer's no-argument defaults against the paper's settings and missForest (100 trees, CV).
+"""The imputer's no-argument defaults (``KernelRegularizerImputer()``): error, speed and tuning.
 
-Protocol: the first ``--rows`` oil-flow training rows, Table 2's masks
-(:func:`nldr.experiments._table2.random_mask`, mask k at p uses seed 2016 + k), CPU seconds by
-``time.process_time``; run with ``OPENBLAS_NUM_THREADS=1`` in the environment (the machine may be
-shared: CPU seconds, not wall time, and compare methods within one session). Per mask:
+Run as ``OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py SUBCOMMAND [options]``. Oil-flow
+rows, Table 2's masks (:func:`nldr.experiments._table2.random_mask`, private: imported so that these
+are the pipeline's masks; mask k at p uses seed 2016 + k), SSE over the whole matrix unless said
+otherwise, CPU seconds by ``time.process_time`` (the machine may be shared: compare methods within one
+session).
 
-- ``default``: ``KernelRegularizerImputer()`` with no arguments (its own hold-out tuning included in
-  its CPU seconds), ``random_state`` left at its default;
-- ``paper``: the paper's Table 2 settings written out (raw columns, gamma 0.075, tau 0.1, exact);
-- ``missForest100``: missForest with 100 trees (``missforest_imputer(n_estimators=100)``), its
-  ``max_features`` in {1/3, 1} chosen by :class:`nldr.model_selection.HoldoutSearch` on ``--folds``
-  hold-out folds of the observed entries (seed = the mask's seed), refitted on every observed entry.
-  (Per-column widths are tried by ``bench_ard.py``.)
+``compare``: per mask of the first ``--rows`` training rows, ``default`` (``KernelRegularizerImputer()``,
+its own hold-out tuning included in its CPU seconds), ``paper`` (the paper's Table 2 settings written
+out: raw columns, gamma 0.075, tau 0.1, exact) and ``missForest100`` (100 trees, its
+``max_features`` in {1/3, 1} chosen by :class:`nldr.model_selection.HoldoutSearch` over
+the pipeline's grid (:func:`nldr.impute._grids.baseline_grid`, private: the tables' own search
+grids) on ``--folds`` folds, seed = the mask's seed, refitted). Appends one
+row per (mask, method) to ``--out``/defaults.csv (rows already there are skipped), then prints mean,
+sample sd and count of the SSE per (rows, p, method).
 
-Appends one row per (mask, method) to ``--out`` as it goes (rows already there are skipped), then
-prints mean, sample sd and count of the SSE per (rows, p, method).
+``oracle``: per mask at one p, ``KernelRegularizerImputer().fit`` (its search over the width multiples
+and ``--taus``), then every candidate of that grid refitted with fixed ``gamma`` and ``tau``. The
+per-mask minimum over the candidates uses the ground truth: an **oracle**, the best any rule on this
+grid could do, not a method. Prints one line per mask and the means.
+
+``fit``: ``KernelRegularizerImputer().fit_transform`` on the first ``--rows`` training rows at each p
+(mask seed 2016), its tuning included, and the same fit untuned (``gamma`` and ``tau`` set to the
+values the tuning chose), so the tuning's cost is the difference.
+
+``large``: the untuned fit (``gamma=None, tau=0.1``: the median rule) on the first ``--rows`` rows of
+the three splits (:func:`nldr.datasets.load_oil_rows`; 3000 is every row), p = 0.25.
+
+``path``: the solver paths of ``method="auto"`` on the first n training rows (``--sizes``), ``--masks``
+masks at each p: ``method="exact"`` against ``"nystroem-warm"`` (100 landmarks, seed 0), untuned
+(the median rule, tau 0.1, standardised): SSE and CPU seconds.
+
+``transform``: fit on the 1000 training rows (complete), then complete the first 200 validation rows
+with a share p of their entries hidden (mask seed 2016 + k): SSE on the hidden entries of ours and of
+scikit-learn's ``KNNImputer`` (its defaults, and its ``n_neighbors``/``weights`` chosen by the
+hold-out search of ``baseline_grid`` on the training rows with the same share
+hidden), and ours' milliseconds per new row.
+
+``ard``: per-column widths, chosen by the hold-out error. ARD is the RBF kernel
+``exp(-gamma sum_j a_j^2 (s_ij - s_kj)^2)`` on the standardised columns, solved as the isotropic kernel
+on the columns scaled by ``a_j`` (so the data term's weight of column j is ``a_j^2`` too). Per mask:
+``default`` as above; ``ard``: from a = 1, one pass of coordinate search over the columns (a_j times
+0.5 or 2, kept when it lowers the mean squared hold-out error, original units, on the same folds as the
+default's tuning), gamma and tau at the default's choice, then the solve on every observed entry with
+the chosen a. Appends rows to ``--out``/ard.csv; prints mean, sd and count per p.
+
+``oracle`` and ``ard`` read the default's tuning grid and folds from :mod:`nldr.impute._regularizer`
+(private): they measure that internal choice.
 
 Usage::
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py --rows 100 --masks 10
-    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py --rows 1000 --masks 3 --methods default
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py compare --rows 100 --masks 10
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py compare --rows 1000 --masks 3 --methods default
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py oracle --p 0.5
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py fit --rows 1000
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py large --rows 3000
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py path --sizes 150 300 --masks 3
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py transform --masks 3
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py ard --rows 100 --masks 5
 """
 
 from __future__ import annotations
 
-import argparse
-import time
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
+from _common import append_row, check_blas, common_options, done, key, parser, timed
+from sklearn.impute import KNNImputer
 
-from nldr.datasets import load_oil
+from nldr.datasets import load_oil, load_oil_rows
 from nldr.experiments._table2 import random_mask
 from nldr.impute import KernelRegularizerImputer
-from nldr.impute._grids import missforest_imputer
-from nldr.model_selection import HoldoutSearch
+from nldr.impute import _regularizer as tuning
+from nldr.impute._grids import baseline_grid
+from nldr.model_selection import HoldoutSearch, holdout_folds
 
 METHODS = ("default", "paper", "missForest100")
+SEED = 2016
 
 
-def estimator(method: str, seed: int, folds: int):
+def masked(X, p, seed):
+    """``(X with the hidden entries NaN, the mask)`` of Table 2's mask at p and seed."""
+    mask = random_mask(X.shape, p, seed)
+    return np.where(mask, X, np.nan), mask
+
+
+def sse(X_hat, X) -> float:
+    return float(np.sum((X_hat - X) ** 2))
+
+
+# ---------------------------------------------------------------------------------------------- compare
+
+
+def estimator(method: str, W, seed: int, folds: int):
     if method == "default":
         return KernelRegularizerImputer()
     if method == "paper":
         return KernelRegularizerImputer(standardize=False, gamma=0.075, tau=0.1, center=False, method="exact")
     if method == "missForest100":
-        forest = missforest_imputer(n_estimators=100)
-        grid = {"estimator__max_features": [1 / 3, 1.0]}
-        return HoldoutSearch(forest, grid, n_folds=folds, random_state=seed)
+        return HoldoutSearch(*baseline_grid("missForest", W, n_trees=100), n_folds=folds, random_state=seed)
     raise ValueError(f"method must be one of {METHODS}; got {method!r}")
 
 
-def describe(method, fitted) -> str:
+def describe(fitted) -> str:
     if isinstance(fitted, HoldoutSearch):
         return repr(fitted.best_params_)
-    if isinstance(fitted, KernelRegularizerImputer):
-        return f"gamma={fitted.gamma_:.4g} tau={fitted.tau_:.4g} method={fitted.method_}"
-    return ""
+    return f"gamma={fitted.gamma_:.4g} tau={fitted.tau_:.4g} method={fitted.method_}"
 
 
-def main():
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("--rows", type=int, default=100)
-    parser.add_argument("--p", type=float, nargs="+", default=[0.1, 0.25, 0.5])
-    parser.add_argument("--masks", type=int, default=10)
-    parser.add_argument("--first-mask", type=int, default=0)
-    parser.add_argument("--seed", type=int, default=2016)
-    parser.add_argument("--folds", type=int, default=3)
-    parser.add_argument("--methods", nargs="+", default=list(METHODS))
-    parser.add_argument("--data", default=None)
-    parser.add_argument("--out", default="results/benchmarks/defaults.csv")
-    args = parser.parse_args()
-    X = load_oil("train", args.data)[0][: args.rows]
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+def run_compare(args):
+    if args.quick:
+        args.p, args.masks = [0.25], 1
+    X = load_oil("train", args.data_dir)[0][: args.rows]
+    seen = done(args.out, "defaults.csv", ["n_rows", "p", "seed", "method"])
     for p in args.p:
         for k in range(args.first_mask, args.first_mask + args.masks):
             seed = args.seed + k
-            mask = random_mask(X.shape, p, seed)
-            W = np.where(mask, X, np.nan)
+            W, _ = masked(X, p, seed)
             for method in args.methods:
-                done = pd.read_csv(out) if out.exists() else None
-                if (
-                    done is not None
-                    and (
-                        (done["n_rows"] == args.rows)
-                        & np.isclose(done["p"], p)
-                        & (done["seed"] == seed)
-                        & (done["method"] == method)
-                    ).any()
-                ):
+                if key((args.rows, p, seed, method)) in seen:
                     continue
-                fitted = estimator(method, seed, args.folds)
-                start = time.process_time()
-                X_hat = fitted.fit_transform(W)
-                cpu = time.process_time() - start
-                sse = float(np.sum((X_hat - X) ** 2))
-                row = {
-                    "n_rows": args.rows,
-                    "p": p,
-                    "seed": seed,
-                    "method": method,
-                    "sse": sse,
-                    "cpu": cpu,
-                    "params": describe(method, fitted),
-                }
+                fitted = estimator(method, W, seed, args.folds)
+                cpu, X_hat = timed(lambda fitted=fitted, W=W: fitted.fit_transform(W), clock="cpu")
+                row = {"n_rows": args.rows, "p": p, "seed": seed, "method": method, "sse": sse(X_hat, X)}
+                row |= {"cpu": cpu, "params": describe(fitted)}
                 print(
-                    f"n={args.rows} p={p:g} seed={seed} {method:14s} sse={sse:9.3f} cpu={cpu:7.2f}s "
+                    f"n={args.rows} p={p:g} seed={seed} {method:14s} sse={row['sse']:9.3f} cpu={cpu:7.2f}s "
                     f"{row['params']}",
                     flush=True,
                 )
-                pd.DataFrame([row]).to_csv(out, mode="a", header=not out.exists(), index=False)
-    table = pd.read_csv(out)
+                append_row(row, args.out, "defaults.csv")
+    table = pd.read_csv(args.out / "defaults.csv")
     table = table[table["n_rows"] == args.rows]
     summary = table.groupby(["p", "method"]).agg(
         sse=("sse", "mean"), sse_sd=("sse", "std"), masks=("sse", "size"), cpu=("cpu", "mean")
     )
     print(summary.round(3).to_string())
+
+
+# ---------------------------------------------------------------------------------------------- oracle
+
+
+def run_oracle(args):
+    if args.quick:
+        args.masks = 1
+    X = load_oil("train", args.data_dir)[0][: args.rows]
+    defaults, oracles, grid = [], [], {}
+    for k in range(args.masks):
+        W, _ = masked(X, args.p, SEED + k)
+        est = KernelRegularizerImputer().fit(W)
+        defaults.append(sse(est.completed_, X))
+        multiples, base = tuning.TUNE_GAMMA_MULTIPLES, tuning.MEDIAN_RULE_MULTIPLE
+        median_rule = est.cv_results_["params"][0]["gamma"] * base / multiples[0]
+        scores = {}
+        for m in multiples:
+            for tau in args.taus:
+                fixed = KernelRegularizerImputer(gamma=m * median_rule / base, tau=tau).fit(W)
+                scores[(m, tau)] = sse(fixed.completed_, X)
+                grid.setdefault((m, tau), []).append(scores[(m, tau)])
+        oracles.append(min(scores.values()))
+        chosen = (est.gamma_ * base / median_rule, est.tau_)
+        print(
+            f"seed {SEED + k}: default {defaults[-1]:.2f} (width x{chosen[0]:g}, tau {chosen[1]:g}), "
+            f"oracle {oracles[-1]:.2f} {min(scores, key=scores.get)}",
+            flush=True,
+        )
+    spread = np.std(defaults, ddof=1) if len(defaults) > 1 else float("nan")
+    print(f"default {np.mean(defaults):.2f} ± {spread:.2f}; per-mask oracle {np.mean(oracles):.2f}")
+    for (m, tau), values in grid.items():
+        print(f"  fixed width x{m:g}, tau {tau:g}: {np.mean(values):.2f}")
+
+
+# ---------------------------------------------------------------------------------------------- speed
+
+
+def run_fit(args):
+    if args.quick:
+        args.rows, args.p = 100, [0.25]
+    X = load_oil("train", args.data_dir)[0][: args.rows]
+    for p in args.p:
+        W, _ = masked(X, p, SEED)
+        tuned = KernelRegularizerImputer()
+        cpu, X_hat = timed(lambda tuned=tuned, W=W: tuned.fit_transform(W), clock="cpu")
+        fixed = KernelRegularizerImputer(gamma=tuned.gamma_, tau=tuned.tau_)
+        cpu_fixed, X_fix = timed(lambda fixed=fixed, W=W: fixed.fit_transform(W), clock="cpu")
+        print(
+            f"fit n={args.rows} p={p:g}: default {cpu:.1f} CPU s (SSE {sse(X_hat, X):.2f}; "
+            f"gamma {tuned.gamma_:.4g}, tau {tuned.tau_:g}, {tuned.method_}), untuned at the chosen values "
+            f"{cpu_fixed:.1f} CPU s (SSE {sse(X_fix, X):.2f}), tuning {cpu - cpu_fixed:.1f} CPU s",
+            flush=True,
+        )
+
+
+def run_large(args):
+    if args.quick:
+        args.rows = 300
+    X = load_oil_rows(args.rows, args.data_dir)
+    W, _ = masked(X, 0.25, SEED)
+    est = KernelRegularizerImputer(gamma=None, tau=0.1, random_state=0)
+    cpu, X_hat = timed(lambda: est.fit_transform(W), clock="cpu")
+    print(
+        f"large n={args.rows} p=0.25: untuned {cpu:.1f} CPU s, SSE {sse(X_hat, X):.2f}, "
+        f"{est.method_}, nit {est.result_.nit}",
+        flush=True,
+    )
+
+
+def run_path(args):
+    if args.quick:
+        args.sizes, args.p, args.masks = [150], [0.25], 1
+    for n in args.sizes:
+        X = load_oil("train", args.data_dir)[0][:n]
+        for p in args.p:
+            for k in range(args.masks):
+                W, _ = masked(X, p, SEED + k)
+                line = []
+                for method in ("exact", "nystroem-warm"):
+                    est = KernelRegularizerImputer(gamma=None, tau=0.1, method=method, random_state=0)
+                    cpu, X_hat = timed(lambda est=est, W=W: est.fit_transform(W), clock="cpu")
+                    line.append(f"{method} SSE {sse(X_hat, X):.3f} ({cpu:.1f} CPU s)")
+                print(f"path n={n} p={p:g} seed={SEED + k}: " + ", ".join(line), flush=True)
+
+
+def run_transform(args):
+    X_train = load_oil("train", args.data_dir)[0]
+    X_new = load_oil("validation", args.data_dir)[0][:200]
+    if args.quick:
+        X_train, args.p, args.masks = X_train[:300], [0.25], 1
+    cpu_fit, ours = timed(lambda: KernelRegularizerImputer().fit(X_train), clock="cpu")
+    print(
+        f"transform: fit on {X_train.shape[0]} complete rows {cpu_fit:.1f} CPU s "
+        f"(gamma {ours.gamma_:.4g}, tau {ours.tau_:g}, {ours.n_components_} components)",
+        flush=True,
+    )
+    for p in args.p:
+        for k in range(args.masks):
+            seed = SEED + k
+            W, mask = masked(X_new, p, seed)
+            cpu, X_hat = timed(lambda W=W: ours.transform(W), clock="cpu")
+            hidden_sse = float(np.sum((X_hat - X_new)[~mask] ** 2))
+            knn = float(np.sum((KNNImputer().fit(X_train).transform(W) - X_new)[~mask] ** 2))
+            train, _ = masked(X_train, p, seed)
+            search = HoldoutSearch(*baseline_grid("KNNImputer", train), n_folds=3, random_state=seed)
+            search.fit(train)
+            cv = KNNImputer(**search.best_params_).fit(X_train).transform(W)
+            knn_cv = float(np.sum((cv - X_new)[~mask] ** 2))
+            print(
+                f"transform p={p:g} seed={seed}: ours SSE {hidden_sse:.3f} "
+                f"({1e3 * cpu / X_new.shape[0]:.2f} ms/row), "
+                f"KNNImputer() {knn:.3f}, KNNImputer CV {knn_cv:.3f} {search.best_params_}",
+                flush=True,
+            )
+
+
+# ---------------------------------------------------------------------------------------------- ard
+
+
+def solve_scaled(Z, mask, a, gamma, tau):
+    """The isotropic solve on the columns scaled by a; the estimate in standardised units."""
+    est = KernelRegularizerImputer(standardize=False, gamma=gamma, tau=tau, method="exact")
+    return est.fit_transform(np.where(mask, Z * a, np.nan)) / a
+
+
+def ard_mask(X, p, seed):
+    W, mask = masked(X, p, seed)
+    cpu_default, default = timed(lambda: KernelRegularizerImputer().fit(W), clock="cpu")
+    mean, sd = default.mean_, default.scale_
+    Z = np.where(mask, (W - mean) / sd, np.nan)
+    gamma, tau = default.gamma_, default.tau_
+    folds = holdout_folds(mask, tuning.TUNE_FOLDS, 0, holdout=tuning.TUNE_HOLDOUT)
+
+    def score(a):
+        errors = []
+        for hidden in folds:
+            S = solve_scaled(Z, mask & ~hidden, a, gamma, tau) * sd + mean
+            errors.append(np.mean((S - X)[hidden] ** 2))
+        return float(np.mean(errors))
+
+    def search():
+        a = np.ones(X.shape[1])
+        best = score(a)
+        for j in range(X.shape[1]):
+            for factor in (0.5, 2.0):
+                trial = a.copy()
+                trial[j] *= factor
+                value = score(trial)
+                if value < best:
+                    a, best = trial, value
+                    break
+        return a, solve_scaled(Z, mask, a, gamma, tau) * sd + mean
+
+    cpu_ard, (a, X_ard) = timed(search, clock="cpu")
+    return [
+        {
+            "p": p, "seed": seed, "method": "default", "sse": sse(default.completed_, X), "cpu": cpu_default,
+            "a": "",
+        },
+        {
+            "p": p, "seed": seed, "method": "ard", "sse": sse(X_ard, X), "cpu": cpu_ard + cpu_default,
+            "a": " ".join(f"{v:g}" for v in a),
+        },
+    ]  # fmt: skip
+
+
+def run_ard(args):
+    if args.quick:
+        args.p, args.masks = [0.25], 1
+    X = load_oil("train", args.data_dir)[0][: args.rows]
+    seen = {(p, seed) for p, seed, _ in done(args.out, "ard.csv", ["p", "seed", "method"])}
+    for p in args.p:
+        for k in range(args.masks):
+            if key((p, SEED + k)) in seen:
+                continue
+            for row in ard_mask(X, p, SEED + k):
+                print(
+                    f"p={p:g} seed={row['seed']} {row['method']:8s} sse={row['sse']:8.3f} "
+                    f"cpu={row['cpu']:6.1f}s {row['a']}",
+                    flush=True,
+                )
+                append_row(row, args.out, "ard.csv")
+    table = pd.read_csv(args.out / "ard.csv")
+    print(
+        table.groupby(["p", "method"])
+        .agg(sse=("sse", "mean"), sd=("sse", "std"), masks=("sse", "size"), cpu=("cpu", "mean"))
+        .round(3)
+        .to_string()
+    )
+
+
+def main(argv=None):
+    ap = parser(__doc__, options=False)
+    sub = ap.add_subparsers(dest="command", required=True)
+    ps = ("--p", {"type": float, "nargs": "+", "default": [0.1, 0.25, 0.5], "help": "missing shares"})
+
+    compare = common_options(sub.add_parser("compare", help="default against the paper's values, missForest"))
+    compare.add_argument("--rows", type=int, default=100)
+    compare.add_argument(ps[0], **ps[1])
+    compare.add_argument("--masks", type=int, default=10)
+    compare.add_argument("--first-mask", type=int, default=0)
+    compare.add_argument("--seed", type=int, default=SEED, help="seed of mask 0")
+    compare.add_argument("--folds", type=int, default=3, help="hold-out folds of missForest's search")
+    compare.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    compare.set_defaults(run=run_compare)
+
+    oracle = common_options(sub.add_parser("oracle", help="the default's choice against the grid's oracle"))
+    oracle.add_argument("--p", type=float, default=0.5)
+    oracle.add_argument("--rows", type=int, default=100)
+    oracle.add_argument("--masks", type=int, default=10)
+    oracle.add_argument("--taus", type=float, nargs="+", default=list(tuning.TUNE_TAUS))
+    oracle.set_defaults(run=run_oracle)
+
+    fit = common_options(sub.add_parser("fit", help="the default's fit, its tuning's share"))
+    fit.add_argument("--rows", type=int, default=1000)
+    fit.add_argument(ps[0], **ps[1])
+    fit.set_defaults(run=run_fit)
+
+    large = common_options(sub.add_parser("large", help="the untuned fit on up to 3000 rows"))
+    large.add_argument("--rows", type=int, default=3000)
+    large.set_defaults(run=run_large)
+
+    path = common_options(sub.add_parser("path", help="exact against nystroem-warm"))
+    path.add_argument("--sizes", type=int, nargs="+", default=[150, 300])
+    path.add_argument(ps[0], **ps[1])
+    path.add_argument("--masks", type=int, default=3)
+    path.set_defaults(run=run_path)
+
+    transform = common_options(sub.add_parser("transform", help="new rows against KNNImputer"))
+    transform.add_argument(ps[0], **ps[1])
+    transform.add_argument("--masks", type=int, default=3)
+    transform.set_defaults(run=run_transform)
+
+    ard = common_options(sub.add_parser("ard", help="per-column widths by hold-out"))
+    ard.add_argument("--rows", type=int, default=100)
+    ard.add_argument(ps[0], **ps[1])
+    ard.add_argument("--masks", type=int, default=5)
+    ard.set_defaults(run=run_ard)
+
+    args = ap.parse_args(argv)
+    check_blas()
+    args.run(args)
 
 
 if __name__ == "__main__":

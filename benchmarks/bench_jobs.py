@@ -15,21 +15,20 @@ per job; nothing is written.
 
 from __future__ import annotations
 
-import argparse
 import sys
-import time
+from functools import partial
 from pathlib import Path
 
 import yaml
+from _common import check_blas, cpu_and_wall, parser
 
 
 def main():
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("repo", type=Path, help="a checkout with config/ and resources/")
-    parser.add_argument("jobs", nargs="+", help="<experiment>:<job id>")
-    args = parser.parse_args()
+    ap = parser(__doc__, options=False)
+    ap.add_argument("repo", type=Path, help="a checkout with config/ and resources/")
+    ap.add_argument("jobs", nargs="+", help="<experiment>:<job id>")
+    args = ap.parse_args()
+    check_blas()
     sys.path.insert(0, str(args.repo / "src"))
     from nldr.experiments import get
 
@@ -42,12 +41,9 @@ def main():
             raise SystemExit(
                 f"{name} has no job {job_id!r}; its jobs: {[j.id for j in experiment.jobs(config)]}"
             )
-        cpu, wall = time.process_time(), time.time()
-        experiment.run(matches[0], experiment.settings(config), str(args.repo / "resources"), threads=1)
-        print(
-            f"{args.repo} {spec}: {time.process_time() - cpu:.1f} CPU s, {time.time() - wall:.1f} wall s",
-            flush=True,
-        )
+        settings, data_dir = experiment.settings(config), str(args.repo / "resources")
+        cpu, wall, _ = cpu_and_wall(partial(experiment.run, matches[0], settings, data_dir, threads=1))
+        print(f"{args.repo} {spec}: {cpu:.1f} CPU s, {wall:.1f} wall s", flush=True)
 
 
 if __name__ == "__main__":

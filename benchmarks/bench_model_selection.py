@@ -1,7 +1,8 @@
 """Benchmark of hold-out selection of (tau, gamma) on the paper's Table 2 protocol, before and after.
 
 Protocol: the first 100 oil-flow training rows (100 x 12), masks from
-:func:`nldr.experiments._table2.random_mask` (seeds ``--seed0``, +1, ...), mean-imputation start, uncentred
+:func:`nldr.experiments._table2.random_mask` (private: imported so that these are Table 2's masks;
+seeds ``--seed0``, +1, ...), mean-imputation start, uncentred
 kernel, the paper's schedule (rho0 1, growth 10, rho_max 1e4), one BLAS thread, CPU seconds
 (``time.process_time``). Per mask it times one solve at the paper's values (gamma 0.075, tau 0.1) and
 one :class:`nldr.model_selection.HoldoutSearch` of the regularizer per variant on the default grid (9
@@ -16,24 +17,20 @@ It reports the SSE over the whole matrix of the paper's values, of each variant'
 grid point with the smallest SSE against ground truth (an ORACLE: it sees the truth, so it is only a
 reference, never a method), and the cost of a selection in solves' worth (selection CPU / solve CPU).
 
-Writes ``results/benchmarks/model_selection_seed<seed0>.csv`` (one row per mask and variant) and
-prints a summary.
+Writes ``--out``/model_selection_seed<seed0>.csv (one row per mask and variant) and prints a summary.
+``--quick``: one mask at p = 0.05.
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_model_selection.py --p 0.05 0.5 --masks 3
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_model_selection.py --p 0.05 0.5 --masks 3
 """
 
 from __future__ import annotations
 
-import argparse
-import time
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
+from _common import check_blas, parser, timed, write_csv
 from sklearn.base import clone
-from threadpoolctl import threadpool_limits
 
 from nldr.datasets import load_oil
 from nldr.experiments._table2 import random_mask
@@ -64,17 +61,13 @@ def run_mask(X, p, seed, variants):
     def sse(S):
         return float(np.sum((S - X) ** 2))
 
-    start = time.process_time()
-    paper = clone(OURS).set_params(**PAPER).fit_transform(W)
-    solve_cpu = time.process_time() - start
+    solve_cpu, paper = timed(lambda: clone(OURS).set_params(**PAPER).fit_transform(W), clock="cpu")
     gammas = np.asarray(GAMMA_MULTIPLES) * median_gamma(W)
     grid = {"gamma": [float(g) for g in gammas], "tau": list(DEFAULT_TAUS)}
     rows = []
     for name in variants:
-        start = time.process_time()
         search = HoldoutSearch(OURS, grid, random_state=seed, **VARIANTS[name])
-        X_hat = search.fit_transform(W)
-        select_cpu = time.process_time() - start
+        select_cpu, X_hat = timed(lambda search=search: search.fit_transform(W), clock="cpu")
         rows.append(
             {
                 "p": p,
@@ -101,26 +94,24 @@ def run_mask(X, p, seed, variants):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--masks", type=int, default=3)
-    parser.add_argument("--seed0", type=int, default=2016, help="first mask seed (Table 2 uses 2016 on)")
-    parser.add_argument("--p", type=float, nargs="+", default=[0.05, 0.5])
-    parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
-    parser.add_argument("--data", default="/work/shared/data")
-    parser.add_argument("--out", default="results/benchmarks")
-    args = parser.parse_args()
-    X = load_oil("train", args.data)[0][:100]
+    ap = parser(__doc__)
+    ap.add_argument("--masks", type=int, default=3)
+    ap.add_argument("--seed0", type=int, default=2016, help="first mask seed (Table 2 uses 2016 on)")
+    ap.add_argument("--p", type=float, nargs="+", default=[0.05, 0.5])
+    ap.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
+    args = ap.parse_args()
+    if args.quick:
+        args.p, args.masks = [0.05], 1
+    check_blas()
+    X = load_oil("train", args.data_dir)[0][:100]
     rows = []
-    with threadpool_limits(1):
-        for p in args.p:
-            for seed in range(args.seed0, args.seed0 + args.masks):
-                rows.extend(run_mask(X, p, seed, args.variants))
-                for row in rows[-len(args.variants):]:
-                    print({k: round(v, 4) if isinstance(v, float) else v for k, v in row.items()}, flush=True)
+    for p in args.p:
+        for seed in range(args.seed0, args.seed0 + args.masks):
+            rows.extend(run_mask(X, p, seed, args.variants))
+            for row in rows[-len(args.variants) :]:
+                print({k: round(v, 4) if isinstance(v, float) else v for k, v in row.items()}, flush=True)
     frame = pd.DataFrame(rows)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    frame.to_csv(out / f"model_selection_seed{args.seed0}.csv", index=False)
+    write_csv(frame, args.out, f"model_selection_seed{args.seed0}.csv")
     for (p, name), group in frame.groupby(["p", "variant"], sort=True):
         columns = ("solves", "sse_cv", "sse_oracle", "sse_paper")
         stats = {c: (group[c].mean(), group[c].std(ddof=1)) for c in columns}

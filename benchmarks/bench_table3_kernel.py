@@ -5,36 +5,35 @@ Each case is one Table 3 job's kernel solve: CMU mocap every 10th frame, 41 poin
 of the (frame, point) observations hidden (``random_visibility_mask(F, P, 0.5, seed)``), TNH (ADMM,
 tol 1e-6) as the start, the width from the TNH shapes (d_max or d_med), tau = 1e-4 and the config's
 penalty schedule (rho 1e-3 to 1e3, x10, tol 1e-12, gtol 1e-10) unless overridden. CPU seconds with
-BLAS on one thread (``time.process_time``); the TNH is not timed.
+BLAS on one thread (``time.process_time``); the TNH is not timed. Widths by :func:`nldr.kernels.d_max_width`
+and :func:`nldr.kernels.d_med_width`.
 
 The answer is judged by its energy, never by e3D: ``energy`` is (1) at the last rho (the solver's
 ``fun``); ``ref_energy`` is the same energy of the reconstruction saved by a previous full run
 (``--reference-runs``, default results/runs/table3: the ``.npz`` of each job), and ``rel_energy`` is
 ``energy / ref_energy - 1`` (negative: lower than the reference). e3D is reported beside it.
 
-Usage (from the repository root)::
+Usage (from the repository root; ``--quick``: pickup, full data, d_med, both variables)::
 
-    .venv/bin/python benchmarks/bench_table3_kernel.py --sequences pickup stretch --seeds 2016
-    .venv/bin/python benchmarks/bench_table3_kernel.py --depth-scale 0 100 --rho-growth 10 100
-    .venv/bin/python benchmarks/bench_table3_kernel.py --all      # the 24 jobs of Table 3
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_table3_kernel.py --sequences pickup stretch --seeds 2016
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_table3_kernel.py --depth-scale 0 100 --rho-growth 10 100
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_table3_kernel.py --all      # the 24 jobs of Table 3
 
-``--depth-scale 0`` means L-BFGS on the shapes (the code before this change). Writes
-results/benchmarks/table3_kernel.csv (one row per case and variant).
+``--depth-scale 0`` means L-BFGS on the shapes. Writes ``--out``/table3_kernel.csv (one row per case
+and variant).
 """
 
 from __future__ import annotations
 
-import argparse
 import itertools
-import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from threadpoolctl import threadpool_limits
+from _common import check_blas, parser, timed, write_csv
 
 from nldr.datasets import load_mocap
-from nldr.experiments._mocap import WIDTHS
+from nldr.kernels import d_max_width, d_med_width
 from nldr.nrsfm import (
     CameraFrameVariables,
     OrthographicReprojection,
@@ -45,8 +44,8 @@ from nldr.nrsfm import (
 )
 from nldr.regularizer import minimize_regularized, reduced_energy
 
-OUT = Path("results/benchmarks/table3_kernel.csv")
 TAU = 1e-4
+WIDTHS = {"d_max": d_max_width, "d_med": d_med_width}
 
 
 def reference_shapes(runs: Path, job_id: str) -> dict:
@@ -81,9 +80,12 @@ def run_case(name, frac, seed, widths, variants, data_dir, runs, step=10):
             opts["options"]["scale"] = 1.0  # Table 3's units (config table3.regularizer.scale)
             if depth_scale:
                 opts["variables"] = CameraFrameVariables(seq.R, mask, depth_scale)
-            cpu0 = time.process_time()
-            res = minimize_regularized(data_term, tnh.x, gamma=gamma, tau=TAU, center=False, **opts)
-            cpu = time.process_time() - cpu0
+            cpu, res = timed(
+                lambda gamma=gamma, opts=opts: minimize_regularized(
+                    data_term, tnh.x, gamma=gamma, tau=TAU, center=False, **opts
+                ),
+                clock="cpu",
+            )
             row = {
                 "job": job_id, "width": width, "F": F, "depth_scale": depth_scale,
                 "rho_growth": opts["rho_growth"], "stage_tol": opts["options"]["stage_tol"],
@@ -108,7 +110,7 @@ def run_case(name, frac, seed, widths, variants, data_dir, runs, step=10):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser(__doc__)
     ap.add_argument("--sequences", nargs="+", default=["pickup", "stretch"])
     ap.add_argument("--seeds", nargs="+", type=int, default=[2016], help="mask seeds of the 50 %% setting")
     ap.add_argument("--no-full", action="store_true", help="skip the full-data setting")
@@ -123,10 +125,11 @@ def main(argv=None):
     ap.add_argument("--gtol", type=float, default=1e-10)
     ap.add_argument("--rho-max", type=float, default=1e3)
     ap.add_argument("--step", type=int, default=10, help="every step-th frame (table3_full: 1)")
-    ap.add_argument("--data-dir", default=None)
     ap.add_argument("--reference-runs", type=Path, default=Path("results/runs/table3"))
-    ap.add_argument("--out", type=Path, default=OUT)
     args = ap.parse_args(argv)
+    if args.quick:
+        args.sequences, args.seeds, args.widths = ["pickup"], [], ["d_med"]
+    check_blas()
     if args.all:
         args.sequences, args.seeds, args.no_full = (
             ["drink", "pickup", "yoga", "stretch"],
@@ -147,15 +150,12 @@ def main(argv=None):
         for b, g, st in itertools.product(args.depth_scale, args.rho_growth, args.stage_tol)
     ]
     rows = []
-    with threadpool_limits(1):
-        for name in args.sequences:
-            for frac, seed in settings:
-                rows += run_case(
-                    name, frac, seed, args.widths, variants, args.data_dir, args.reference_runs, args.step
-                )
+    for name in args.sequences:
+        for frac, seed in settings:
+            case = (name, frac, seed, args.widths, variants, args.data_dir, args.reference_runs, args.step)
+            rows += run_case(*case)
     table = pd.DataFrame(rows)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    table.to_csv(args.out, index=False)
+    write_csv(table, args.out, "table3_kernel.csv")
     keys = ["depth_scale", "rho_growth", "stage_tol"]
     cols = ["cpu_seconds", "nit"] + [c for c in ("rel_energy", "rel_e3d") if c in table]
     print(table.groupby(keys)[cols].agg(["sum", "max"] if "rel_energy" not in table else "max").to_string())

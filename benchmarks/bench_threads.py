@@ -4,11 +4,14 @@ One completion per case: ``KernelRegularizerImputer(random_state=0)`` (defaults 
 columns, the hold-out search of width and tau, then the solver path ``method="auto"`` picks by
 size: exact up to 150 rows, the Nystroem warm start up to 1499, every stage on 200 landmarks from
 1500; a fixed ``random_state``, so that every fit is the same computation) on the first n oil-flow
-rows (train, then validation, then test split) with 25 % of the entries missing (mask seed 2016).
+rows (train, then validation, then test split) with 25 % of the entries missing (Table 2's mask of
+seed 2016, :func:`nldr.experiments._table2.random_mask`, private: the pipeline's masks).
 From 1000 rows the penalty schedule of every solve (the search's and the final one) is cut to two
 stages (rho 1 and 10) of at most 15 inner iterations, to keep the benchmark cheap on a shared
 machine; the matrices, hence what a thread buys per operation, are the full problem's. The search's
-fold solves run on one thread in every setting (:func:`nldr._threads.single_blas_thread`).
+fold solves run on one thread in every setting (:func:`nldr._threads.single_blas_thread`). The
+rule itself is private (:mod:`nldr._threads`): the ``default`` setting reads the count it chose
+(:func:`nldr._threads.blas_threads`), which is what this script measures.
 
 Thread settings, each in a fresh process so that nothing carries over:
 
@@ -25,17 +28,15 @@ Each (state, n, threads) is timed ``--repeats`` times in one fresh process (the 
 imports and data loading are outside the timings); a process still running after ``--cap`` wall
 seconds is stopped and its unfinished fits are shown as ``inf`` (slower than the cap). The table
 gives the median wall seconds, their spread (min-max), the median CPU seconds of the fit alone, and
-the load average before and after.
+the load average before and after; ``--out``/threads.csv keeps every fit's timings. The script sets
+the threads of its child processes itself, so ``OPENBLAS_NUM_THREADS`` need not be set.
+``--quick``: 100 rows, one fit per setting, idle only.
 
-    .venv/bin/python benchmarks/bench_threads.py [--sizes 100 1000 3000] [--repeats 3]
-
-Costs about 3 CPU minutes of fits on the sizes above (more where two threads spin), and the
-competitor's core while the busy cases run.
+    python benchmarks/bench_threads.py [--sizes 100 1000 3000] [--repeats 3]
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -43,28 +44,31 @@ import statistics
 import subprocess
 import sys
 import time
-from pathlib import Path
+
+from _common import check_blas, parser, write_csv
 
 SETTINGS = ("1", "2", "default")
 
 CHILD = r"""
-import json, sys, time
+import json, sys
 import numpy as np
 setting, n, repeats = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
-from threadpoolctl import threadpool_info, threadpool_limits
+data_dir = sys.argv[4] or None
+sys.path.insert(0, sys.argv[5])  # benchmarks/, for _common
+from _common import cpu_and_wall
+from threadpoolctl import threadpool_limits
 from nldr.datasets import load_oil_rows
 from nldr.experiments._table2 import random_mask
 from nldr.impute import KernelRegularizerImputer
 from nldr import _threads
 
-X = load_oil_rows(n)
+X = load_oil_rows(n, data_dir)
 mask = random_mask(X.shape, 0.25, 2016)
 W = np.where(mask, X, np.nan)
 kw = {}
 if n >= 1000:  # two penalty stages, few inner iterations: the full problem's matrices, fewer steps
     kw = {"schedule": {"rho0": 1.0, "rho_max": 10.0}, "options": {"max_inner": 15}}
 model = KernelRegularizerImputer(random_state=0, **kw)  # the same landmarks in every fit
-seen = set()
 if setting == "default":
     chosen = _threads.blas_threads(n)
     limit = None
@@ -72,9 +76,7 @@ else:
     chosen = int(setting)
     limit = threadpool_limits(chosen, user_api="blas")
 for _ in range(repeats):
-    wall0, cpu0 = time.perf_counter(), time.process_time()
-    X_hat = model.fit_transform(W)
-    wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
+    cpu, wall, X_hat = cpu_and_wall(lambda: model.fit_transform(W))
     sse = float(np.sum((X_hat - X) ** 2))
     if setting == "default":
         chosen = _threads.blas_threads(n)
@@ -91,14 +93,15 @@ while True:
 """
 
 
-def run_case(setting: str, n: int, repeats: int, cap: float) -> list[dict]:
+def run_case(setting: str, n: int, repeats: int, cap: float, data_dir) -> list[dict]:
     """``repeats`` fits in one fresh process; a process still running after ``cap`` wall seconds is
     stopped and its unfinished fits count as ``> cap`` (wall: inf)."""
     drop = ("OPENBLAS_", "OMP_", "MKL_", "NLDR_AUTO")  # OpenBLAS starts at its default: a thread per core
     env = {k: v for k, v in os.environ.items() if not k.startswith(drop)}
     if setting != "default":
         env["NLDR_AUTO_THREADS"] = "0"
-    cmd = [sys.executable, "-c", CHILD, setting, str(n), str(repeats)]
+    here = os.path.dirname(os.path.abspath(__file__))
+    cmd = [sys.executable, "-c", CHILD, setting, str(n), str(repeats), data_dir or "", here]
     try:
         out = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True, timeout=cap).stdout
     except subprocess.TimeoutExpired as exc:
@@ -123,13 +126,14 @@ def stop(proc: subprocess.Popen) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 3000])
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--cap", type=float, default=150.0, help="wall seconds per setting's process")
-    parser.add_argument("--states", nargs="+", default=["idle", "busy"], choices=["idle", "busy"])
-    parser.add_argument("--out", type=Path, default=None, help="also write the raw timings (JSON lines)")
-    args = parser.parse_args()
+    ap = parser(__doc__, repeats=3)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 3000])
+    ap.add_argument("--cap", type=float, default=150.0, help="wall seconds per setting's process")
+    ap.add_argument("--states", nargs="+", default=["idle", "busy"], choices=["idle", "busy"])
+    args = ap.parse_args()
+    if args.quick:
+        args.sizes, args.repeats, args.states = [100], 1, ["idle"]
+    check_blas(measures_threads=True)
     raw = []
     print(f"{os.cpu_count()} CPUs; load average at start {os.getloadavg()[0]:.1f}")
     print("| state | rows | threads | chosen | wall s median (min-max) | CPU s median | SSE | load |")
@@ -142,7 +146,7 @@ def main() -> None:
                     time.sleep(1.0)  # let it reach its loop
                 times, load = {}, [os.getloadavg()[0]]
                 for setting in SETTINGS:
-                    times[setting] = run_case(setting, n, args.repeats, args.cap)
+                    times[setting] = run_case(setting, n, args.repeats, args.cap, args.data_dir)
                     load.append(os.getloadavg()[0])
                     raw += [{"state": state, "n": n, "setting": setting, **r} for r in times[setting]]
             finally:
@@ -160,8 +164,7 @@ def main() -> None:
                     f"{min(load):.1f}-{max(load):.1f} |",
                     flush=True,
                 )
-    if args.out:
-        args.out.write_text("".join(json.dumps(r) + "\n" for r in raw))
+    write_csv(raw, args.out, "threads.csv")
 
 
 if __name__ == "__main__":

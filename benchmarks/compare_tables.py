@@ -31,13 +31,13 @@ when a scorecard verdict flips, 0 otherwise.
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from _common import parser as make_parser
 
 KEY = ["setting", "method", "metric"]
 SCORE_KEY = ["table", *KEY]
@@ -158,7 +158,7 @@ def markdown(frame: pd.DataFrame, digits: int = 3) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = make_parser(__doc__, options=False)
     parser.add_argument("first", type=Path, help="results folder of the first run")
     parser.add_argument("second", type=Path, help="results folder of the second run")
     parser.add_argument("--out", type=Path, help="also write the per-table summary here (CSV)")
