@@ -50,7 +50,8 @@ from nldr.data_terms import MaskedLeastSquares
 from nldr.datasets import load_mocap, load_oil
 from nldr.experiments._table2 import random_mask
 from nldr.kernels import d_med_width, rbf_kernel
-from nldr.nrsfm import OrthographicReprojection, stack_to_rows, trace_norm_heuristic
+from nldr.nrsfm import OrthographicReprojection, stack_to_rows
+from nldr.nrsfm._reconstruct import trace_norm_heuristic
 from nldr.reference.regularizer import (
     finite_difference_pre_image_step,
     minimize_regularized_alternation,
@@ -78,8 +79,8 @@ def pickup_problem(data_dir):
     """Table 3's kernel problem on pickup (every 10th frame, full data): data term, TNH start, d_med gamma."""
     seq = load_mocap("pickup", data_dir).subsample(10)
     W2d = stack_to_rows(seq.W, dim=2)
-    X0 = trace_norm_heuristic(W2d, seq.R, method="cvxpy").x
-    return OrthographicReprojection(W2d, seq.R), X0, d_med_width(X0)
+    X0 = trace_norm_heuristic(W2d, None, seq.R, method="cvxpy").x
+    return OrthographicReprojection(W2d, None, seq.R), X0, d_med_width(X0)
 
 
 # ---------------------------------------------------------------------------------------------- eigensolver
@@ -125,7 +126,7 @@ def run_eigensolver(args) -> None:
     if not args.quick:
         seq = load_mocap("drink", args.data_dir)
         W2d, X_gt = stack_to_rows(seq.W, dim=2), stack_to_rows(seq.S, dim=3)
-        drink = OrthographicReprojection(W2d, seq.R)
+        drink = OrthographicReprojection(W2d, None, seq.R)
         gamma = d_med_width(X_gt)
         compare(
             rows,

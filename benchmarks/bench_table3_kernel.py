@@ -40,8 +40,8 @@ from nldr.nrsfm import (
     e3d,
     random_visibility_mask,
     stack_to_rows,
-    trace_norm_heuristic,
 )
+from nldr.nrsfm._reconstruct import trace_norm_heuristic
 from nldr.regularizer import minimize_regularized, reduced_energy
 
 TAU = 1e-4
@@ -66,10 +66,10 @@ def run_case(name, frac, seed, widths, variants, data_dir, runs, step=10):
     W2d, X_gt = stack_to_rows(seq.W, dim=2), stack_to_rows(seq.S, dim=3)
     F, P = W2d.shape[0], W2d.shape[1] // 2
     mask = np.ones((F, P), dtype=bool) if frac == 0 else random_visibility_mask(F, P, frac, seed)
-    data_term = OrthographicReprojection(W2d, seq.R, mask)
+    data_term = OrthographicReprojection(W2d, mask, seq.R)
     job_id = f"{name}_{'full' if frac == 0 else 'missing'}_seed{seed}"
     ref = reference_shapes(runs, job_id)
-    tnh = trace_norm_heuristic(W2d, seq.R, mask, method="admm", tol=1e-6)
+    tnh = trace_norm_heuristic(W2d, mask, seq.R, method="admm", tol=1e-6)
     out = []
     for width in widths:
         gamma = WIDTHS[width](tnh.x)

@@ -66,7 +66,8 @@ from _common import check_blas, common_options, parser, timed, write_csv
 
 from nldr import paper
 from nldr.datasets import load_mocap
-from nldr.nrsfm import e3d, random_visibility_mask, stack_to_rows, trace_norm_heuristic
+from nldr.nrsfm import e3d, random_visibility_mask, stack_to_rows
+from nldr.nrsfm._reconstruct import trace_norm_heuristic
 from nldr.nrsfm._reprojection import visibility_weights
 from nldr.nrsfm._tnh import fista_tnh
 from nldr.result import STATUS_NAMES
@@ -87,9 +88,9 @@ def paper_e3d(name: str, missing: bool) -> float:
 
 def solve(W2d, R, mask, solver, tau, eps, admm_options):
     if solver == "ADMM":
-        return trace_norm_heuristic(W2d, R, mask, method="admm", **admm_options)
+        return trace_norm_heuristic(W2d, mask, R, method="admm", **admm_options)
     options = None if eps is None else {"eps_abs": eps, "eps_rel": eps}
-    return trace_norm_heuristic(W2d, R, mask, tau=tau, method="cvxpy", solver=solver, solver_options=options)
+    return trace_norm_heuristic(W2d, mask, R, tau=tau, method="cvxpy", solver=solver, solver_options=options)
 
 
 def _child(queue, args):
@@ -287,7 +288,7 @@ def solve_reading(reading, W2d, R, mask, penalised_max_iter):
     if reading == "penalised":
         res = penalised_tnh(W2d, R, mask, 1e-7, penalised_max_iter)
     else:
-        res = trace_norm_heuristic(W2d, R, mask)
+        res = trace_norm_heuristic(W2d, mask, R)
     return res.x, res.nit
 
 
@@ -301,7 +302,7 @@ def run_protocol(args):
         F, P = W2d.shape[0], W2d.shape[1] // 2
         mask = random_visibility_mask(F, P, 0.5, args.seed)
         ours = exact_fit_coordinates(W2d, seq.R, np.repeat(mask[:, None, :], 2, axis=1))
-        lib = trace_norm_heuristic(W2d, seq.R, mask).x
+        lib = trace_norm_heuristic(W2d, mask, seq.R).x
         print(f"check: e3d coordinate ADMM {e3d(ours, Xgt, P):.5f}, library ADMM {e3d(lib, Xgt, P):.5f}")
     rows = []
     for name in args.sequences:
