@@ -52,7 +52,7 @@ VARIANTS = {
         "prefer": ("tau", "gamma"),
         "path": "tau",
         "stop_factor": 1.5,
-        "fold_params": {"options": {"tol": 1e-7, "gtol": 1e-4}},
+        "fold_params": {"tol": 1e-7, "gtol": 1e-4},
     },
 }
 
