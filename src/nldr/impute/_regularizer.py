@@ -42,16 +42,8 @@ METHODS = ("auto", "exact", "nystroem", "nystroem-warm")
 #: the constructor parameters that set minimize_regularized's options, and the option each sets
 _FLAT_OPTIONS = {"max_iter": "max_inner", "tol": "tol", "gtol": "gtol", "n_landmarks": "landmarks"}
 #: the options that stay in ``options`` (rarely tuned: a solver path's internals)
-_RARE_OPTIONS = (
-    "stage_tol",
-    "isolation_guard",
-    "scale",
-    "eigensolver",
-    "landmark_seed",
-    "exact_stages",
-    "exact_tol",
-    "last_landmarks",
-)
+_RARE_OPTIONS = ("stage_tol", "isolation_guard", "scale", "eigensolver", "landmark_seed", "exact_stages",
+                 "exact_tol", "last_landmarks")  # fmt: skip
 #: ``method="auto"`` solves exactly up to this many rows and warm-starts from the Nystroem kernel above
 #: (measured: docs/PERFORMANCE.md#solver-path).
 AUTO_EXACT_MAX_ROWS = 150

@@ -42,9 +42,9 @@ What the search chooses on the paper's data, and where it cannot find the ground
 docs/REPRODUCTION.md#selection.
 """
 
-from ._folds import DEFAULT_TAUS, GAMMA_MULTIPLES, holdout_folds, median_gamma
+from ._folds import DEFAULT_TAUS, GAMMA_MULTIPLES, EntryFolds, holdout_folds, median_gamma
 from ._robust import HUBER_EFFICIENCY, RobustScaleDelta, robust_scale
-from ._search import EntryFolds, HoldoutSearch
+from ._search import HoldoutSearch
 
 __all__ = [
     "HoldoutSearch",

@@ -21,36 +21,11 @@ from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 
 from .._cv import run_jobs, say, summarise_folds
 from .._threads import single_blas_thread
-from ._folds import SCORES, fold_score, holdout_folds
+from ._folds import SCORES, EntryFolds, fold_score
 from ._rules import RULES, choose, reference_index
 
-__all__ = ["HoldoutSearch", "EntryFolds", "RULES"]
+__all__ = ["HoldoutSearch", "RULES"]
 
-
-
-class EntryFolds:
-    """Masked-entry folds of the observed entries of X (:func:`~nldr.model_selection.holdout_folds`).
-
-    Parameters
-    ----------
-    n_folds : int >= 2, default 5
-    holdout : float in (0, 1) or None, default None
-        None: the folds partition the observed entries; a share: each fold hides that share afresh.
-    random_state : int, default 0
-        Seed of the shuffles: same mask and seed, same folds.
-    """
-
-    def __init__(self, n_folds: int = 5, *, holdout: float | None = None, random_state=0):
-        self.n_folds = n_folds
-        self.holdout = holdout
-        self.random_state = random_state
-
-    def split(self, X) -> list[np.ndarray]:
-        """Hidden-entry masks, one bool array of X's shape per fold (True: hidden)."""
-        return holdout_folds(~np.isnan(X), self.n_folds, self.random_state, holdout=self.holdout)
-
-    def __repr__(self) -> str:
-        return f"EntryFolds(n_folds={self.n_folds}, holdout={self.holdout}, random_state={self.random_state})"
 
 
 def _validate(estimator) -> None:
