@@ -35,7 +35,8 @@ from sklearn.base import clone
 from nldr.datasets import load_oil
 from nldr.experiments._table2 import random_mask
 from nldr.impute import KernelRegularizerImputer
-from nldr.model_selection import DEFAULT_TAUS, GAMMA_MULTIPLES, HoldoutSearch, median_gamma
+from nldr.model_selection import HoldoutSearch, median_gamma
+from nldr.model_selection._folds import DEFAULT_TAUS, GAMMA_MULTIPLES
 
 PAPER = {"gamma": 0.075, "tau": 0.1}
 #: the regularizer in the data's units, the paper's schedule (the solver's defaults), exact kernel
@@ -49,7 +50,7 @@ VARIANTS = {
         "prefer": ("tau", "gamma"),
         "path": "tau",
         "stop_factor": 1.5,
-        "fold_params": {"options": {"tol": 1e-7, "gtol": 1e-4}},
+        "fold_params": {"tol": 1e-7, "gtol": 1e-4},
     },
 }
 

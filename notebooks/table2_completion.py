@@ -70,6 +70,7 @@ table_path, run_paths, array_paths = nb.table, nb.runs, nb.arrays
 # the protocol this notebook shows: the config's (or the pipeline's) settings, nothing hard-coded
 n_rows, gamma, seed = settings["n_rows"], settings["gamma"], settings["seed"]
 ours = dict(settings["methods"]["Ours"])
+ours.update(ours.pop("schedule", None) or {})  # the schedule: rho0, rho_growth, rho_max
 p = 0.25 if 0.25 in settings["p"] else settings["p"][0]
 print(
     f"protocol: first {n_rows} rows, p in {settings['p']}, {settings['n_masks']} masks per p, "

@@ -18,7 +18,7 @@ import nldr.robust_kpca
 #: module -> its estimator classes
 ESTIMATORS = {
     "nldr.impute._regularizer": ["KernelRegularizerImputer"],
-    "nldr.impute._manifold": ["RobustKernelPCAImputer", "Reconstruction"],
+    "nldr.impute._manifold": ["RobustKernelPCAImputer", "DecompositionDenoiser"],
     "nldr.impute._linear": ["PPCAImputer", "SoftImputer", "RobustPCAImputer"],
     "nldr.impute._kernel_pca": ["PKPCAImputer", "RKPCAImputer"],
     "nldr.impute._neighbours": ["NearestNeighbourImputer"],

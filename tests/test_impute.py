@@ -37,7 +37,16 @@ ESTIMATORS = [
 ]
 
 
-@parametrize_with_checks(ESTIMATORS)
+def _expected_failed_checks(estimator) -> dict:
+    """scikit-learn's checks that a method fails by design, with the reason."""
+    if isinstance(estimator, PKPCAImputer | RKPCAImputer):
+        # check_transformer_n_iter (run for estimators with max_iter) fits complete data: with no
+        # missing entry the kernel baselines' outer loop has nothing to move and reports nit = 0
+        return {"check_transformer_n_iter": "no missing entry: nothing to iterate, n_iter_ = 0"}
+    return {}
+
+
+@parametrize_with_checks(ESTIMATORS, expected_failed_checks=_expected_failed_checks)
 def test_scikit_learn_estimator_checks(estimator, check):
     check(estimator)
 
@@ -176,7 +185,7 @@ def test_auto_method_runs_every_stage_on_landmarks_from_its_threshold(rng, monke
     W, _ = hide(surface(60, rng, noise=0.01), 0.25, rng)
     kw = {"gamma": None, "tau": 0.1, "random_state": 4}
     auto = KernelRegularizerImputer(**kw, options={"exact_stages": 1}).fit(W)
-    explicit = KernelRegularizerImputer(**kw, method="nystroem", options={"landmarks": 15}).fit(W)
+    explicit = KernelRegularizerImputer(**kw, method="nystroem", n_landmarks=15).fit(W)
     assert auto.method_ == "nystroem"
     np.testing.assert_array_equal(auto.completed_, explicit.completed_)  # the same computation
     assert KernelRegularizerImputer(**kw).fit(W[:49]).method_ == "nystroem-warm"
@@ -219,8 +228,14 @@ def test_bad_input_is_refused_with_a_clear_message(X, match):
         ({"weights": "inverse"}, "weights"),
         ({"n_neighbors": 0}, "n_neighbors"),
         ({"options": [1]}, "options"),
-        ({"method": "exact", "options": {"landmarks": 10}}, "method 'exact' takes no option 'landmarks'"),
-        ({"schedule": {"rho": 1.0}}, "schedule"),
+        ({"method": "exact", "options": {"exact_stages": 1}}, "'exact' takes no option 'exact_stages'"),
+        ({"method": "exact", "n_landmarks": 10}, "n_landmarks"),
+        ({"method": "nystroem"}, "needs n_landmarks"),
+        ({"options": {"landmarks": 10, "max_inner": 5}}, "pass n_landmarks=, max_iter="),
+        ({"rho_growth": 1.0}, "rho_growth"),
+        ({"rho0": 10.0, "rho_max": 1.0}, "rho_max"),
+        ({"max_iter": 0}, "max_iter"),
+        ({"tol": -1e-8}, "'tol'"),
         ({"missing_values": "x"}, "missing_values"),
     ],
 )

@@ -60,8 +60,8 @@ CASES = {
     "1-NN": (NearestNeighbourImputer(), lambda W, m: nearest_neighbour_impute(W, m).x),
     "SoftImpute": (SoftImputer(lam=0.5), lambda W, m: soft_impute(W, m, lam=0.5).x),
     "RPCA": (RobustPCAImputer(lam_factor=2.0), lambda W, m: rpca_impute(W, m, lam_factor=2.0).x),
-    "PPCA options": (
-        PPCAImputer(n_components=2, options={"max_iter": 3, "accelerate": False}),
+    "PPCA solver knobs": (
+        PPCAImputer(n_components=2, max_iter=3, accelerate=False),
         lambda W, m: ppca_impute(W, m, 2, max_iter=3, accelerate=False).x,
     ),
 }
@@ -131,13 +131,19 @@ def test_ppca_on_one_row_is_refused():
 
 
 @pytest.mark.parametrize(
-    "est",
-    [PPCAImputer(options={"maxiter": 3}), PKPCAImputer(options={"tol": 1.0}),
-     SoftImputer(options={"lam": 1.0}), RobustPCAImputer(options={"lam": 1.0}),
-     RKPCAImputer(options=[("gtol", 1.0)])],
-    ids=lambda e: type(e).__name__,
+    ("est", "name"),
+    [(PPCAImputer(max_iter=0), "max_iter"), (PKPCAImputer(gtol=-1.0), "gtol"),
+     (SoftImputer(tol=0.0), "tol"), (RobustPCAImputer(mu=-1.0), "mu"),
+     (RKPCAImputer(inner_max_iter=2.5), "inner_max_iter")],
+    ids=lambda e: type(e).__name__ if not isinstance(e, str) else e,
 )  # fmt: skip
-def test_unknown_options_are_refused_naming_them(rng, est):
+def test_bad_solver_knobs_are_refused_naming_them(rng, est, name):
     W, _ = hide(low_rank(rng), 0.2, rng)
-    with pytest.raises(ValueError, match="option"):
+    with pytest.raises(ValueError, match=f"'{name}' parameter of {type(est).__name__}"):
         est.fit(W)
+
+
+@pytest.mark.parametrize("cls", [PPCAImputer, PKPCAImputer, SoftImputer, RobustPCAImputer, RKPCAImputer])
+def test_solver_knobs_are_parameters_not_an_options_dict(cls):
+    with pytest.raises(TypeError, match="options"):
+        cls(options={"max_iter": 3})

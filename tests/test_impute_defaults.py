@@ -51,7 +51,7 @@ def test_the_tuning_scores_are_the_hold_out_errors_of_the_documented_folds(probl
     folds = holdout_folds(mask, module.TUNE_FOLDS, 0, holdout=module.TUNE_HOLDOUT)
     first = est.cv_results_["params"][0]
     for k, hidden in enumerate(folds):
-        fold = KernelRegularizerImputer(**first, method="exact", options=dict(module._TUNE_TOLERANCES))
+        fold = KernelRegularizerImputer(**first, method="exact", **module.TUNE_TOLERANCES)
         X_hat = fold.fit_transform(np.where(hidden, np.nan, W))
         error = np.mean((X_hat - W)[hidden] ** 2)
         assert est.cv_results_[f"split{k}_test_error"][0] == pytest.approx(error, rel=1e-8)
@@ -144,7 +144,7 @@ def brute_force_row_fold_errors(W, mask, gamma, tau, candidates):
         rows = np.where(observed & ~hidden, W[held], np.nan)
         for k, starts in candidates:
             fold = KernelRegularizerImputer(
-                gamma=gamma, tau=tau, method="exact", options=dict(module._TUNE_TOLERANCES),
+                gamma=gamma, tau=tau, method="exact", **module.TUNE_TOLERANCES,
                 n_neighbors=k, starts=starts, random_state=None,
             )  # fmt: skip
             X_hat = fold.fit(np.where(mask[~held], W[~held], np.nan)).transform(rows)

@@ -1,4 +1,4 @@
-"""RobustKernelPCAImputer and Reconstruction (nldr.impute._manifold): the estimator contract, the
+"""RobustKernelPCAImputer and DecompositionDenoiser (nldr.impute._manifold): the estimator contract, the
 completion they wrap reproduced bit for bit, and the warm start a search over the neighbours uses."""
 
 import numpy as np
@@ -8,12 +8,12 @@ from sklearn.utils.estimator_checks import parametrize_with_checks
 from test_impute import surface
 
 from nldr._preimage import average_solutions
-from nldr.impute import Reconstruction, RobustKernelPCAImputer
+from nldr.impute import DecompositionDenoiser, RobustKernelPCAImputer
 from nldr.model_selection import HoldoutSearch
 from nldr.robust_kpca import RobustKernelPCA
 
 
-@parametrize_with_checks([RobustKernelPCAImputer(), Reconstruction(PCA(n_components=1))])
+@parametrize_with_checks([RobustKernelPCAImputer(), DecompositionDenoiser(PCA(n_components=1))])
 def test_scikit_learn_estimator_checks(estimator, check):
     check(estimator)
 
@@ -130,6 +130,7 @@ def test_reconstruction_is_inverse_transform_of_transform(data, decomposition):
     X_train, X_new, _ = data
     model = decomposition.fit(X_train)
     expected = model.inverse_transform(model.transform(X_new))
-    np.testing.assert_array_equal(Reconstruction(decomposition).fit(X_train).transform(X_new), expected)
+    denoised = DecompositionDenoiser(decomposition).fit(X_train).transform(X_new)
+    np.testing.assert_array_equal(denoised, expected)
     with pytest.raises(ValueError, match="inverse_transform"):
-        Reconstruction(RobustKernelPCAImputer()).fit(X_train)
+        DecompositionDenoiser(RobustKernelPCAImputer()).fit(X_train)

@@ -12,7 +12,8 @@ from nldr._baselines import mean_impute
 from nldr._schedule import isolation_safe_rho0
 from nldr._spectral import cubic_threshold
 from nldr.data_terms import MaskedLeastSquares
-from nldr.model_selection import DEFAULT_TAUS, HoldoutSearch, holdout_folds, median_gamma
+from nldr.model_selection import HoldoutSearch, holdout_folds, median_gamma
+from nldr.model_selection._folds import DEFAULT_TAUS
 from nldr.regularizer import minimize_regularized
 
 
@@ -140,7 +141,7 @@ def test_the_regularizer_imputer_s_fold_errors_are_the_hand_computed_ones_and_th
     W = np.where(mask, W, np.nan)
     gamma, taus = median_gamma(W), [0.1, 1.0]
     ours = KernelRegularizerImputer(standardize=False, gamma=gamma, method="exact")
-    loose = {"options": {"tol": 1e-7, "gtol": 1e-4}}
+    loose = {"tol": 1e-7, "gtol": 1e-4}
     search = HoldoutSearch(ours, {"tau": taus}, n_folds=2, fold_params=loose).fit(W)
     folds = holdout_folds(mask, 2, random_state=0)
     for k, tau in enumerate(taus):
@@ -165,7 +166,7 @@ def test_the_regularizer_imputer_s_tau_path_is_the_hand_chain_of_warm_last_stage
     ours = KernelRegularizerImputer(standardize=False, method="exact")
     search = HoldoutSearch(
         ours, {"gamma": [g1, g2], "tau": [0.1, 1.0]}, n_folds=2, holdout=0.1, path="tau",
-        fold_params={"options": {"tol": 1e-7, "gtol": 1e-4}},
+        fold_params={"tol": 1e-7, "gtol": 1e-4},
     ).fit(W)
     errors = {key: [] for key in [(g1, 0.1), (g1, 1.0), (g2, 0.1), (g2, 1.0)]}
     cold = {"tol": 1e-7, "gtol": 1e-4}
@@ -210,11 +211,12 @@ def test_a_warm_regularizer_imputer_refit_on_another_shape_or_standardised_start
 @pytest.mark.parametrize(
     "params",
     [
-        {"options": {"tol": 1e-7, "gtoll": 1e-4}},
-        {"method": "exact", "options": {"landmarks": 50}},
-        {"method": "nystroem", "options": {"tol": 1e-7}},  # landmarks required
+        {"options": {"stage_tol": 1e-7, "gtoll": 1e-4}},
+        {"method": "exact", "n_landmarks": 50},
+        {"method": "nystroem", "tol": 1e-7},  # n_landmarks required
         {"method": "auto", "options": {"max_iner": 10}},
-        {"schedule": {"rho": 1.0}},
+        {"options": {"tol": 1e-7}},  # a parameter, not an option
+        {"rho0": 10.0, "rho_max": 1.0},
         {"warm_start": "yes"},
     ],
 )
@@ -229,9 +231,9 @@ def test_a_bad_regularizer_imputer_option_is_refused_before_the_first_fold(param
     _, W, mask = denoising_problem(n=25, d=5)
     W = np.where(mask, W, np.nan)
     grid = {"tau": [0.1, 1.0]}
-    with pytest.raises(ValueError, match="option|schedule|warm_start|landmarks"):
+    with pytest.raises(ValueError, match="option|rho_max|warm_start|landmarks"):
         HoldoutSearch(KernelRegularizerImputer(**params), grid, n_folds=2, path="tau").fit(W)
-    typo = {"options": {"tol": 1e-7, "gtoll": 1e-4}}
+    typo = {"tol": 1e-7, "options": {"gtoll": 1e-4}}
     with pytest.raises(ValueError, match="gtoll"):
         HoldoutSearch(KernelRegularizerImputer(), grid, n_folds=2, fold_params=typo).fit(W)
 
@@ -241,8 +243,8 @@ def test_method_auto_takes_the_nystroem_warm_options_and_drops_them_where_it_sol
 
     _, W, mask = denoising_problem(n=25, d=5)
     W = np.where(mask, W, np.nan)
-    auto = KernelRegularizerImputer(options={"landmarks": 10, "exact_stages": 2, "tol": 1e-8}).fit(W)
-    exact = KernelRegularizerImputer(method="exact", options={"tol": 1e-8}).fit(W)
+    auto = KernelRegularizerImputer(n_landmarks=10, options={"exact_stages": 2}, tol=1e-8).fit(W)
+    exact = KernelRegularizerImputer(method="exact", tol=1e-8).fit(W)
     assert auto.method_ == "exact"
     np.testing.assert_array_equal(auto.completed_, exact.completed_)
 

@@ -36,16 +36,15 @@ PUBLIC = {
         "Located", "cached", "load_config", "locate", "merge_config", "need", "repo_root", "timing_path",
     ],
     "nldr.impute": [
-        "KernelRegularizerImputer", "NearestNeighbourImputer", "PKPCAImputer", "PPCAImputer", "RKPCAImputer",
-        "Reconstruction", "RobustKernelPCAImputer", "RobustPCAImputer", "SoftImputer",
+        "DecompositionDenoiser", "KernelRegularizerImputer", "NearestNeighbourImputer", "PKPCAImputer",
+        "PPCAImputer", "RKPCAImputer", "RobustKernelPCAImputer", "RobustPCAImputer", "SoftImputer",
     ],
     "nldr.kernels": [
         "center_cross_kernel", "center_kernel", "d_max_width", "d_med_width", "rbf_kernel", "rbf_kernel_vjp",
         "squared_distances",
     ],
     "nldr.model_selection": [
-        "DEFAULT_TAUS", "EntryFolds", "GAMMA_MULTIPLES", "HUBER_EFFICIENCY", "HoldoutSearch",
-        "RobustScaleDelta", "holdout_folds", "median_gamma", "robust_scale",
+        "EntryFolds", "HoldoutSearch", "RobustScaleDelta", "holdout_folds", "median_gamma", "robust_scale",
     ],
     "nldr.nrsfm": [
         "CameraFrameVariables", "NRSfMSelection", "OrthographicReprojection", "Reconstruction", "TNHResult",

@@ -241,7 +241,7 @@ def test_float_counts_names_every_integer_key_written_as_a_float():
         (("selection", "n_folds"), 3.0),
         (("selection", "n_rows"), 100.0),
         (("table3", "step"), 3.0),
-        (("table2_all", "ours", "options", "landmarks"), 100.0),
+        (("table2_all", "ours", "n_landmarks"), 100.0),
         (("table2", "seed"), 0.0),
         (("table2", "n_masks"), 2.0),
         (("table1", "n_draws"), 1.0),

@@ -281,8 +281,10 @@ def test_absolute_fold_score_and_unknown_score():
     hidden = np.array([[True, True], [False, True]])
     assert fold_score(X_hat, W, hidden, "absolute") == pytest.approx(4.0 / 3.0)
     assert fold_score(X_hat, W, hidden) == pytest.approx(10.0 / 3.0)
-    with pytest.raises(ValueError, match="scoring must be one of"):
-        HoldoutSearch(None, {}, scoring="huber").fit(np.ones((3, 2)))
+    from sklearn.impute import SimpleImputer
+
+    with pytest.raises(ValueError, match="'scoring' parameter of HoldoutSearch"):
+        HoldoutSearch(SimpleImputer(), {}, scoring="huber").fit(np.ones((3, 2)))
 
 
 def test_robust_scale_delta_is_the_rule_on_the_least_squares_fits_residuals_of_its_own_training_entries():
@@ -326,7 +328,7 @@ def test_a_typo_in_a_huber_search_s_solver_options_is_refused_before_any_solve(m
     monkeypatch.setattr(module, "minimize_regularized", lambda *a, **k: calls.append(1))
     W = np.where(np.random.default_rng(0).random((12, 3)) > 0.2, 1.0, np.nan)
     W[0] = 1.0
-    for solver, match in [({"schedule": {"rho_maxx": 1.0}}, "rho_maxx"), ({"options": {"tol": -1.0}}, "tol"),
+    for solver, match in [({"rho_max": -1.0}, "rho_max"), ({"tol": -1.0}, "tol"),
                           ({"method": "nystroem", "options": {"landmark": 5}}, "landmark"),
                           ({"delta": 0.0}, "delta"), ({"loss": "l1"}, "loss")]:  # fmt: skip
         # the refit's solver (the estimator's) and the folds' (fold_params) are both checked
@@ -356,7 +358,7 @@ def test_the_huber_loss_is_the_masked_huber_solve_and_least_squares_within_delta
     mask[:, 0] |= ~mask.any(axis=1)
     X[rng.random(X.shape) < 0.05] += 3.0  # a few gross errors
     W = np.where(mask, X, np.nan)
-    kw = {"standardize": False, "gamma": 1.0, "tau": 0.1, "method": "exact", "schedule": {"rho_max": 100.0}}
+    kw = {"standardize": False, "gamma": 1.0, "tau": 0.1, "method": "exact", "rho_max": 100.0}
     huber = KernelRegularizerImputer(loss="huber", delta=0.05, **kw).fit(W)
     Z = np.where(mask, X, 0.0)
     direct = minimize_regularized(

@@ -97,12 +97,12 @@ def test_selection_full_inherits_selection_and_says_which_solves_are_approximate
 
 
 def test_exact_path_takes_more_exact_stages_at_low_p():
-    full = {"exact_path": {"method": "nystroem-warm", "options": {"landmarks": 100, "exact_stages": 1},
+    full = {"exact_path": {"method": "nystroem-warm", "n_landmarks": 100, "options": {"exact_stages": 1},
                            "low_p": {"max_p": 0.1, "exact_stages": 2}}}  # fmt: skip
-    warm = {"method": "nystroem-warm", "options": {"landmarks": 100, "exact_stages": 2}}
+    warm = {"method": "nystroem-warm", "n_landmarks": 100, "options": {"exact_stages": 2}}
     assert module.exact_path(full, 0.05) == warm
     assert module.exact_path(full, 0.1)["options"]["exact_stages"] == 2
-    assert module.exact_path(full, 0.25) == {**warm, "options": {"landmarks": 100, "exact_stages": 1}}
+    assert module.exact_path(full, 0.25) == {**warm, "options": {"exact_stages": 1}}
     assert full["exact_path"]["options"]["exact_stages"] == 1  # the settings are not changed
     assert module.exact_path({}, 0.25) == module.exact_path({"exact_path": None}, 0.05) == {}
     cfg = full_config()

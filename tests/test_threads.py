@@ -199,8 +199,8 @@ def test_an_imputer_runs_its_own_arithmetic_on_the_chosen_threads(machine, monke
         tau=0.1,
         n_neighbors=1,
         starts="mean",
-        schedule={"rho_max": 10.0},
-        options={"max_inner": 10},
+        rho_max=10.0,
+        max_iter=10,
     )
     with threadpool_limits(3, user_api="blas"):
         callers = {t for _, t in _blas()}

@@ -44,7 +44,7 @@ from sklearn.decomposition import PCA, KernelPCA
 from sklearn.impute import SimpleImputer
 from sklearn.pipeline import Pipeline
 
-from ..impute import KernelRegularizerImputer, Reconstruction, RobustKernelPCAImputer
+from ..impute import DecompositionDenoiser, KernelRegularizerImputer, RobustKernelPCAImputer
 from ..model_selection import HoldoutSearch
 from .base import Experiment, Job, JobOutput, summary_stats
 
@@ -99,7 +99,8 @@ def _denoiser(method: str) -> tuple[Pipeline, str]:
     if method == "RobustKernelPCA":
         return Pipeline([("fill", SimpleImputer()), ("denoise", RobustKernelPCAImputer())]), "denoise__"
     model = PCA() if method == "PCA" else KernelPCA(kernel="rbf", fit_inverse_transform=True)
-    return Pipeline([("fill", SimpleImputer()), ("denoise", Reconstruction(model))]), "denoise__estimator__"
+    denoiser = DecompositionDenoiser(model)
+    return Pipeline([("fill", SimpleImputer()), ("denoise", denoiser)]), "denoise__estimator__"
 
 
 def _validation_folds(n_fit: int, parts: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -175,7 +176,7 @@ class Denoising(Experiment):
         if n_sub > 0:
             # Ours: transductive on the noisy test images; the pixel parts are the search's folds
             schedule = dict(ours["schedule"])
-            ours = KernelRegularizerImputer(standardize=False, method="exact", schedule=schedule)
+            ours = KernelRegularizerImputer(standardize=False, method="exact", **schedule)
             grid = {"gamma": list(cv["ours_gammas"]), "tau": list(cv["ours_tau"])}
             search = HoldoutSearch(ours, grid, folds=parts_sub, scoring=_sum_squared)
             record("Ours", search.fit_transform(Y_test[:n_sub]), search.best_params_)

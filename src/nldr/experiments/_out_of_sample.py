@@ -284,7 +284,7 @@ class OutOfSample(Experiment):
             joint = np.vstack([X_train[: ours["n_train"]], W[:n_sub]])
             joint_mask = np.vstack([np.ones((ours["n_train"], X_test.shape[1]), bool), mask[:n_sub]])
             paper = {"gamma": ours["gamma"], "tau": ours["tau"]}
-            solver = {"method": "exact", "schedule": dict(ours["schedule"])}
+            solver = {"method": "exact", **ours["schedule"]}
             model = KernelRegularizerImputer(standardize=False, **solver, **paper)
             X_joint, seconds = _timed(lambda: model.fit_transform(np.where(joint_mask, joint, np.nan)))
             record("Ours", X_joint[ours["n_train"] :], seconds, n_sub, paper)

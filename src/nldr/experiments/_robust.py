@@ -173,7 +173,7 @@ class Robust(Experiment):
             candidates = {"gamma": [float(g) for g in gammas], "tau": [float(t) for t in taus]}
             # the regularizer in the data's units with the block's schedule; the fold solves stop
             # earlier (they only rank), each tau path from the smallest tau up
-            ours = KernelRegularizerImputer(standardize=False, method="exact", schedule=dict(schedule))
+            ours = KernelRegularizerImputer(standardize=False, method="exact", **schedule)
             search = {
                 "n_folds": settings["n_folds"],
                 "random_state": seed,
@@ -181,7 +181,7 @@ class Robust(Experiment):
                 "scoring": "absolute",
             }
             start = time.perf_counter()
-            folds = {"options": dict(FOLD_TOLERANCES)}
+            folds = dict(FOLD_TOLERANCES)
             ls = HoldoutSearch(ours, candidates, path="tau", stop_factor=1.5, fold_params=folds, **search)
             X_hat = ls.fit_transform(W)
             record("Ours (LS)", X_hat, time.perf_counter() - start, _words(ls.best_params_))
@@ -190,7 +190,7 @@ class Robust(Experiment):
             # delta per fit from the least-squares fit's residuals at the same tau and gamma
             delta = RobustScaleDelta(settings["delta_factor"])
             huber = KernelRegularizerImputer(
-                standardize=False, method="exact", schedule=dict(schedule), loss="huber"
+                standardize=False, method="exact", **schedule, loss="huber"
             )
             huber = HoldoutSearch(huber, candidates, path="tau", derive=delta, fold_params=folds, **search)
             X_hat = huber.fit_transform(W)

@@ -47,9 +47,10 @@ FOLD_TOLERANCES = {"tol": 1e-7, "gtol": 1e-4}
 
 
 def exact_path(settings, p: float) -> dict:
-    """Keyword arguments of ``minimize_regularized`` for the exact solves at missing share p (config
-    ``exact_path``): {} for the default path, else ``method="nystroem-warm"`` with its options: Nystroem
-    stages then the exact solver's last ``exact_stages`` (``low_p.exact_stages`` at p <= ``low_p.max_p``)."""
+    """Keyword arguments of ``KernelRegularizerImputer`` for the exact solves at missing share p
+    (config ``exact_path``): {} for the default path, else ``method="nystroem-warm"`` with its
+    ``n_landmarks`` and ``options``: Nystroem stages then the exact solver's last ``exact_stages``
+    (``low_p.exact_stages`` at p <= ``low_p.max_p``)."""
     path = dict(settings.get("exact_path") or {})
     low = path.pop("low_p", None)
     if path:
@@ -73,18 +74,18 @@ def regularizer_imputer(settings, p: float) -> KernelRegularizerImputer:
         standardize=False,
         center=bool(settings["center"]),
         method=path.get("method", "exact"),
+        n_landmarks=path.get("n_landmarks"),
         options=options or None,
-        schedule=dict(settings["schedule"]),
+        **settings["schedule"],
     )
 
 
 def fold_params(settings) -> dict:
     """Parameters of the CV's fold solves: :data:`FOLD_TOLERANCES`, the exact kernel (or the
     Nystroem kernel on ``fold_landmarks`` landmark rows), never the refit's path."""
-    params = {"method": "exact", "options": dict(FOLD_TOLERANCES)}
+    params = {"method": "exact", "n_landmarks": None, "options": None, **FOLD_TOLERANCES}
     if settings.get("fold_landmarks") is not None:
-        params["method"] = "nystroem"
-        params["options"].update(landmarks=settings["fold_landmarks"], landmark_seed=0)
+        params.update(method="nystroem", n_landmarks=settings["fold_landmarks"], options={"landmark_seed": 0})
     return params
 
 
@@ -288,7 +289,7 @@ class SelectionFull(Selection):
         )
         path = s.get("exact_path")
         if path:
-            m = path["options"]["landmarks"]
+            m = path["n_landmarks"]
             folds += (
                 f" The exact solves start on a {m}-landmark Nystroem kernel and end with the "
                 "exact solver's last penalty stage(s) (same stopping test; docs/PERFORMANCE.md#scale)."

@@ -104,11 +104,11 @@ def paper_methods(settings: Mapping) -> dict:
         kwargs.setdefault(name, {}).setdefault("gamma", settings["gamma"])
     extra = dict(settings.get("ours", {}))  # e.g. table2_all's Nystroem kernel, laid over Ours's
     ours = {**kwargs["Ours"], **{k: v for k, v in extra.items() if k not in ("options", "schedule")}}
-    for key in ("options", "schedule"):  # merged key by key
-        merged = {**(kwargs["Ours"].get(key) or {}), **(extra.get(key) or {})}
-        ours[key] = merged or None
+    ours.update(ours.pop("schedule", None) or {})  # the config's penalty schedule: rho0, rho_growth, rho_max
+    options = {**(kwargs["Ours"].get("options") or {}), **(extra.get("options") or {})}  # merged key by key
     if ours.get("method", "auto") != "exact":
-        ours["options"] = {"landmark_seed": 0, **(ours["options"] or {})}  # landmarks from a fixed seed
+        options = {"landmark_seed": 0, **options}  # landmarks from a fixed seed
+    ours["options"] = options or None
     return {
         "mean": SimpleImputer(strategy="mean"),
         "1-NN": NearestNeighbourImputer(**kwargs.get("1-NN", {})),
@@ -367,7 +367,7 @@ class Table2(Experiment):
         skip = set(settings.get("skip", []))
         estimators = {m: e for m, e in paper_methods(settings).items() if m not in skip}
         rows = run_mask(X, p=p, seed=seed, estimators=estimators, progress=progress)
-        landmarks = (settings.get("ours", {}).get("options") or {}).get("landmarks")
+        landmarks = settings.get("ours", {}).get("n_landmarks")
         if landmarks is not None:  # not the exact solve: the label says so wherever the row appears
             rows["method"] = rows["method"].replace("Ours", f"Ours (Nystroem {landmarks})")
         peers = settings["peers"]
@@ -438,12 +438,12 @@ class Table2All(Table2Full):
 
     def caption(self, config):
         s = self.settings(config)
-        ours = s.get("ours", {}).get("options") or {}
+        landmarks = s.get("ours", {}).get("n_landmarks")
         how = (
-            f" Ours (Nystroem {ours['landmarks']}) is the regularizer on the Nystroem approximation of the "
-            f"kernel ({ours['landmarks']} landmark samples, "
+            f" Ours (Nystroem {landmarks}) is the regularizer on the Nystroem approximation of the "
+            f"kernel ({landmarks} landmark samples, "
             "minimize_regularized(method='nystroem'), opt-in; not the exact solve, see docs/PERFORMANCE.md)."
-            if "landmarks" in ours
+            if landmarks is not None
             else ""
         )
         if s.get("skip"):

@@ -9,7 +9,7 @@ result object as ``result_`` where there is one.
 
 - :class:`KernelRegularizerImputer`: the paper's method, the non-linear dimensionality regularizer.
 - :class:`RobustKernelPCAImputer`: new rows completed (or denoised) against the closed-form robust
-  kernel PCA of complete training rows; :class:`Reconstruction`: a decomposition (PCA, KernelPCA)
+  kernel PCA of complete training rows; :class:`DecompositionDenoiser`: a decomposition (PCA, KernelPCA)
   as a denoiser.
 - The paper's baselines (Table 2): :class:`PPCAImputer`, :class:`PKPCAImputer`,
   :class:`RKPCAImputer`, :class:`NearestNeighbourImputer` (1-NN).
@@ -22,7 +22,7 @@ scikit-learn's, used as they are.
 
 from ._kernel_pca import PKPCAImputer, RKPCAImputer
 from ._linear import PPCAImputer, RobustPCAImputer, SoftImputer
-from ._manifold import Reconstruction, RobustKernelPCAImputer
+from ._manifold import DecompositionDenoiser, RobustKernelPCAImputer
 from ._neighbours import NearestNeighbourImputer
 from ._regularizer import KernelRegularizerImputer
 
@@ -35,5 +35,5 @@ __all__ = [
     "NearestNeighbourImputer",
     "SoftImputer",
     "RobustPCAImputer",
-    "Reconstruction",
+    "DecompositionDenoiser",
 ]

@@ -10,6 +10,13 @@ scikit-learn plumbing (feature names, ``set_output``, tags). A subclass implemen
   and the solver's result object (or None);
 - ``_complete(W, mask)``: the completion of rows never seen, against what ``_solve`` learnt.
 
+Parameters. Each class declares its parameters' types and ranges in ``_parameter_constraints``
+(scikit-learn's declarative validation: ``fit`` raises ``InvalidParameterError``, a ValueError that
+names the parameter, the accepted values and the value given); a class whose parameters have rules
+that tie two of them together adds those to ``_validate_params`` in a few lines of code, so that
+``fit`` checks them first and :class:`~nldr.model_selection.HoldoutSearch` checks every candidate
+before any fit.
+
 Rows seen in ``fit``. A transductive method's answer for a row depends on every other row, so a
 training row completed on its own would not be the row ``fit_transform`` returned. ``transform``
 therefore returns the fitted estimate for any row identical to a training row (same values, same
@@ -22,10 +29,11 @@ count (:func:`nldr._threads.blas_threads_for`), the estimator's own array arithm
 
 from __future__ import annotations
 
-import numbers
+from numbers import Real
 
 import numpy as np
-from sklearn.base import BaseEstimator, OneToOneFeatureMixin, TransformerMixin
+from sklearn.base import BaseEstimator, OneToOneFeatureMixin, TransformerMixin, _fit_context
+from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._threads import blas_threads_for
@@ -57,8 +65,10 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
         The solver's iteration count (``result_.nit``), where it has one.
     """
 
-    #: the keyword arguments of the solver function that ``options`` may set
-    _option_names: tuple[str, ...] = ()
+    #: ``missing_values``: np.nan or a finite number (not a bool); subclasses extend the dict
+    _parameter_constraints: dict = {
+        "missing_values": [Interval(Real, None, None, closed="neither"), "nan"],
+    }
 
     #: the method needs an observed entry in every column
     _require_observed_columns = True
@@ -71,16 +81,8 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
             return np.isnan(X)
         return (X == self.missing_values) | np.isnan(X)
 
-    def _check_missing_values(self):
-        mv = self.missing_values
-        if _is_nan_marker(mv):
-            return
-        if isinstance(mv, bool) or not isinstance(mv, numbers.Real) or not np.isfinite(mv):
-            raise ValueError(f"missing_values must be np.nan or a finite number; got {mv!r}")
-
     def _validated(self, X, *, reset: bool) -> tuple[np.ndarray, np.ndarray]:
         """X as float64 and its observation mask (True = observed); scikit-learn's checks first."""
-        self._check_missing_values()
         X = validate_data(
             self,
             X,
@@ -100,19 +102,6 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
         )
         return W, mask
 
-    def _options(self) -> dict:
-        """``self.options`` checked against the solver's option names (a dict; None means {})."""
-        options = {} if self.options is None else self.options
-        if not isinstance(options, dict):
-            raise ValueError(f"options must be a dict or None; got {type(options).__name__}")
-        unknown = sorted(set(options) - set(self._option_names))
-        if unknown:
-            raise ValueError(
-                f"unknown option(s) {unknown} of {type(self).__name__}; "
-                f"it takes {', '.join(self._option_names) or 'none'}"
-            )
-        return dict(options)
-
     def _fit(self, X):
         W, mask = self._validated(X, reset=True)
         with blas_threads_for(W.shape[0]):
@@ -124,6 +113,7 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
         self._seen = {key: i for i, key in reversed(list(enumerate(_row_keys(np.where(mask, W, np.nan)))))}
         return self.completed_
 
+    @_fit_context(prefer_skip_nested_validation=True)
     def fit(self, X, y=None):
         """Fit the method to X, shape (n_samples, n_features), NaN (or ``missing_values``) where missing.
 
@@ -132,6 +122,7 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
         self._fit(X)
         return self
 
+    @_fit_context(prefer_skip_nested_validation=True)
     def fit_transform(self, X, y=None):
         """Fit to X and return the method's estimate of X, shape (n_samples, n_features)."""
         return self._fit(X).copy()

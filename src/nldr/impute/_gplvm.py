@@ -15,11 +15,12 @@ import contextlib
 import io
 import logging
 import warnings
+from numbers import Integral
 
 import numpy as np
+from sklearn.utils._param_validation import Interval
 
 from .._baselines._masked import observed_standardisation
-from .._validation import check_count
 from ._base import MaskedImputerBase
 
 __all__ = ["GPLVMImputer", "GPY_MISSING"]
@@ -88,7 +89,7 @@ class GPLVMImputer(MaskedImputerBase):
         Inducing points M (at most n_samples are used).
     max_iter : int >= 1, default 300
         Optimiser iterations.
-    random_state : int, default 0
+    random_state : int >= 0, default 0
         Seeds GPy's random initial latent variances and inducing points (numpy's global generator is
         restored afterwards).
 
@@ -134,15 +135,16 @@ class GPLVMImputer(MaskedImputerBase):
         self.max_iter = max_iter
         self.random_state = random_state
 
-    def _check_params(self):
-        check_count(self.n_latent, "n_latent")
-        check_count(self.n_inducing, "n_inducing")
-        check_count(self.max_iter, "max_iter")
-        if isinstance(self.random_state, bool) or not isinstance(self.random_state, int | np.integer):
-            raise ValueError(f"random_state must be an integer; got {self.random_state!r}")
+    _parameter_constraints: dict = {
+        **MaskedImputerBase._parameter_constraints,
+        "n_latent": [Interval(Integral, 1, None, closed="left")],
+        "n_inducing": [Interval(Integral, 1, None, closed="left")],
+        "max_iter": [Interval(Integral, 1, None, closed="left")],
+        # an int only: numpy's legacy global generator is seeded with it (no RandomState, no None)
+        "random_state": [Interval(Integral, 0, 2**32 - 1, closed="both")],
+    }
 
     def _solve(self, W, mask):
-        self._check_params()
         GPy = _gpy()
         self.mean_, self.scale_ = observed_standardisation(W, mask)
         Y = (np.where(mask, W, np.nan) - self.mean_) / self.scale_

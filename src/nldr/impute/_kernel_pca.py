@@ -8,12 +8,14 @@ rows nearest on the observed entries.
 
 from __future__ import annotations
 
+from numbers import Integral, Real
+
 import numpy as np
+from sklearn.utils._param_validation import Interval
 
 from .._baselines import pkpca_impute, rkpca_impute
 from .._baselines._masked import mean_fill
 from .._preimage import Subspace, complete_from_starts, nearest_rows
-from .._validation import check_positive
 from ..kernels import center_kernel, rbf_kernel, squared_distances
 from ._base import MaskedImputerBase
 
@@ -54,16 +56,21 @@ def _complete_on(space: Subspace, W: np.ndarray, mask: np.ndarray) -> np.ndarray
 
 class _KernelBaseline(MaskedImputerBase):
     _min_samples = 3
-    _option_names = ("max_iter", "inner_max_iter", "gtol")
+    _parameter_constraints: dict = {
+        **MaskedImputerBase._parameter_constraints,
+        "gamma": [Interval(Real, 0, np.inf, closed="neither"), None],
+        "max_iter": [Interval(Integral, 1, None, closed="left")],
+        "inner_max_iter": [Interval(Integral, 1, None, closed="left")],
+        "gtol": [Interval(Real, 0, np.inf, closed="neither")],
+    }
     #: the solver function and whether its subspace is centred
     _solver = None
     _centred = False
 
     def _solve(self, W, mask):
-        self.gamma_ = _median_gamma(W, mask) if self.gamma is None else check_positive(self.gamma, "gamma")
-        result = type(self)._solver(
-            np.where(mask, W, np.nan), mask, self.gamma_, **self._knobs(), **self._options()
-        )
+        self.gamma_ = _median_gamma(W, mask) if self.gamma is None else float(self.gamma)
+        solver = {"max_iter": self.max_iter, "inner_max_iter": self.inner_max_iter, "gtol": self.gtol}
+        result = type(self)._solver(np.where(mask, W, np.nan), mask, self.gamma_, **self._knobs(), **solver)
         self.n_components_ = int(result.n_components)
         rows = getattr(result, "Y", result.x)  # RKPCA's energy minimiser (x keeps the observed entries)
         self.subspace_ = _subspace(rows, self.gamma_, self.n_components_, centred=self._centred)
@@ -93,10 +100,13 @@ class PKPCAImputer(_KernelBaseline):
         trace, plus ``extra_components`` (Sanguinetti & Lawrence's rule).
     variance_fraction : float in (0, 1], default 0.95
     extra_components : int >= 0, default 1
-    options : dict or None, default None
-        The solver's limits, keyword arguments of :func:`~nldr._baselines.pkpca_impute`:
-        ``max_iter`` (outer iterations, 20), ``inner_max_iter`` (L-BFGS iterations per outer
-        iteration, 500), ``gtol`` (L-BFGS projected-gradient tolerance, 1e-4).
+    max_iter : int >= 1, default 20
+        Outer iterations (component refits) at most.
+    inner_max_iter : int >= 1, default 500
+        L-BFGS iterations per outer iteration at most.
+    gtol : float > 0, default 1e-4
+        L-BFGS stops when the largest projected-gradient entry is below gtol (units of the profile
+        likelihood per unit of X).
 
     Attributes
     ----------
@@ -141,14 +151,25 @@ class PKPCAImputer(_KernelBaseline):
         n_components=None,
         variance_fraction=0.95,
         extra_components=1,
-        options=None,
+        max_iter=20,
+        inner_max_iter=500,
+        gtol=1e-4,
     ):
         self.missing_values = missing_values
         self.gamma = gamma
         self.n_components = n_components
         self.variance_fraction = variance_fraction
         self.extra_components = extra_components
-        self.options = options
+        self.max_iter = max_iter
+        self.inner_max_iter = inner_max_iter
+        self.gtol = gtol
+
+    _parameter_constraints: dict = {
+        **_KernelBaseline._parameter_constraints,
+        "n_components": [Interval(Integral, 1, None, closed="left"), None],
+        "variance_fraction": [Interval(Real, 0, 1, closed="right")],
+        "extra_components": [Interval(Integral, 0, None, closed="left")],
+    }
 
     _solver = staticmethod(pkpca_impute)
 
@@ -179,9 +200,13 @@ class RKPCAImputer(_KernelBaseline):
         (0, 1) from which q is re-chosen every outer iteration.
     weight : float >= 0 or inf, default inf
         Weight of the data term on observed entries (units of X^-2); inf keeps them fixed.
-    options : dict or None, default None
-        The solver's limits, keyword arguments of :func:`~nldr._baselines.rkpca_impute`:
-        ``max_iter`` (outer iterations, 20), ``inner_max_iter`` (2000), ``gtol`` (1e-6).
+    max_iter : int >= 1, default 20
+        Outer iterations (subspace refits) at most.
+    inner_max_iter : int >= 1, default 2000
+        L-BFGS iterations per outer iteration at most.
+    gtol : float > 0, default 1e-6
+        L-BFGS stops when the largest projected-gradient entry is below gtol (energy units per unit
+        of X).
 
     Attributes
     ----------
@@ -223,13 +248,23 @@ class RKPCAImputer(_KernelBaseline):
         gamma=None,
         n_components=7,
         weight=np.inf,
-        options=None,
+        max_iter=20,
+        inner_max_iter=2000,
+        gtol=1e-6,
     ):
         self.missing_values = missing_values
         self.gamma = gamma
         self.n_components = n_components
         self.weight = weight
-        self.options = options
+        self.max_iter = max_iter
+        self.inner_max_iter = inner_max_iter
+        self.gtol = gtol
+
+    _parameter_constraints: dict = {
+        **_KernelBaseline._parameter_constraints,
+        "n_components": [Interval(Integral, 1, None, closed="left"), Interval(Real, 0, 1, closed="neither")],
+        "weight": [Interval(Real, 0, np.inf, closed="both")],
+    }
 
     _solver = staticmethod(rkpca_impute)
     _centred = True

@@ -4,7 +4,10 @@ pursuit). New rows are completed from the fitted linear model (each class says h
 
 from __future__ import annotations
 
+from numbers import Integral, Real
+
 import numpy as np
+from sklearn.utils._param_validation import Interval
 
 from .._baselines import ppca_impute, soft_impute
 from .._baselines._masked import mean_fill
@@ -69,10 +72,12 @@ class PPCAImputer(MaskedImputerBase):
     n_components : int or None, default None
         Latent dimension q, 1 <= q < n_features; None: min(10, n_features - 1) (on oil flow's 12
         columns q = 9-11 compare alike: docs/REPRODUCTION.md#table-2-baselines).
-    options : dict or None, default None
-        Keyword arguments of :func:`~nldr._baselines.ppca_impute`: ``max_iter`` (EM iterations,
-        5000), ``tol`` (stop when the log-likelihood changes by less than tol per observed entry,
-        1e-7), ``accelerate`` (over-relaxed EM, True).
+    max_iter : int >= 1, default 5000
+        EM iterations at most.
+    tol : float >= 0, default 1e-7
+        EM stops when the log-likelihood changes by less than tol per observed entry (nats).
+    accelerate : bool, default True
+        Over-relaxed EM (the same fixed point, fewer iterations).
 
     Attributes
     ----------
@@ -111,16 +116,25 @@ class PPCAImputer(MaskedImputerBase):
     _min_samples = 2
     _min_features = 2
 
-    _option_names = ("max_iter", "tol", "accelerate")
+    _parameter_constraints: dict = {
+        **MaskedImputerBase._parameter_constraints,
+        "n_components": [Interval(Integral, 1, None, closed="left"), None],
+        "max_iter": [Interval(Integral, 1, None, closed="left")],
+        "tol": [Interval(Real, 0, np.inf, closed="left")],
+        "accelerate": ["boolean"],
+    }
 
-    def __init__(self, missing_values=np.nan, *, n_components=None, options=None):
+    def __init__(self, missing_values=np.nan, *, n_components=None, max_iter=5000, tol=1e-7, accelerate=True):
         self.missing_values = missing_values
         self.n_components = n_components
-        self.options = options
+        self.max_iter = max_iter
+        self.tol = tol
+        self.accelerate = accelerate
 
     def _solve(self, W, mask):
         q = min(10, W.shape[1] - 1) if self.n_components is None else self.n_components
-        result = ppca_impute(np.where(mask, W, np.nan), mask, q, **self._options())
+        solver = {"max_iter": self.max_iter, "tol": self.tol, "accelerate": self.accelerate}
+        result = ppca_impute(np.where(mask, W, np.nan), mask, q, **solver)
         self.n_components_ = int(q)
         self.mean_, self.components_ = result.mean, result.components
         self.noise_variance_ = float(result.noise_variance)
@@ -147,9 +161,10 @@ class SoftImputer(MaskedImputerBase):
         times the largest singular value of the (centred) mean-imputed X, above which Z = 0.
     center : bool, default True
         Complete the columns centred on their observed means, and add the means back.
-    options : dict or None, default None
-        Keyword arguments of :func:`~nldr._baselines.soft_impute`: ``tol`` (stop when
-        ||Z_{k+1} - Z_k||_F^2 <= tol ||Z_k||_F^2, 1e-7), ``max_iter`` (5000).
+    tol : float > 0, default 1e-7
+        Stop when ||Z_{k+1} - Z_k||_F^2 <= tol ||Z_k||_F^2 (dimensionless).
+    max_iter : int >= 1, default 5000
+        Iterations at most.
 
     Attributes
     ----------
@@ -184,13 +199,20 @@ class SoftImputer(MaskedImputerBase):
     ((6, 3), False, True)
     """
 
-    _option_names = ("tol", "max_iter")
+    _parameter_constraints: dict = {
+        **MaskedImputerBase._parameter_constraints,
+        "lam": [Interval(Real, 0, np.inf, closed="left"), None],
+        "center": ["boolean"],
+        "tol": [Interval(Real, 0, np.inf, closed="neither")],
+        "max_iter": [Interval(Integral, 1, None, closed="left")],
+    }
 
-    def __init__(self, missing_values=np.nan, *, lam=None, center=True, options=None):
+    def __init__(self, missing_values=np.nan, *, lam=None, center=True, tol=1e-7, max_iter=5000):
         self.missing_values = missing_values
         self.lam = lam
         self.center = center
-        self.options = options
+        self.tol = tol
+        self.max_iter = max_iter
 
     def _solve(self, W, mask):
         lam = self.lam
@@ -199,7 +221,9 @@ class SoftImputer(MaskedImputerBase):
             if self.center:
                 filled = filled - filled.mean(axis=0)
             lam = SOFT_IMPUTE_DEFAULT_FRACTION * float(np.linalg.svd(filled, compute_uv=False)[0])
-        result = soft_impute(np.where(mask, W, np.nan), mask, lam=lam, center=self.center, **self._options())
+        result = soft_impute(
+            np.where(mask, W, np.nan), mask, lam=lam, center=self.center, tol=self.tol, max_iter=self.max_iter
+        )
         self.lam_ = float(lam)
         self.rank_ = int(result.rank)
         self.column_means_ = result.column_means
@@ -228,10 +252,14 @@ class RobustPCAImputer(MaskedImputerBase):
         Multiple of Candes et al.'s weight of the l1 norm (dimensionless).
     center : bool, default True
         Subtract the observed column medians first and add them back.
-    options : dict or None, default None
-        Keyword arguments of :func:`~nldr._baselines.rpca.rpca_pcp`: ``mu`` (the ADMM penalty, 1 /
-        units of X; default n d / (4 sum |X_c|) on the observed entries), ``tol`` (1e-7),
-        ``max_iter`` (10000).
+    mu : float > 0 or None, default None
+        The ADMM penalty of :func:`~nldr._baselines.rpca.rpca_pcp`, in 1 / units of X; None:
+        n d / (4 sum |X_c|) on the observed entries.
+    tol : float > 0, default 1e-7
+        ADMM stops when the primal and dual residuals are both <= tol ||X_c||_F on the observed
+        entries (dimensionless).
+    max_iter : int >= 1, default 10000
+        ADMM iterations at most.
 
     Attributes
     ----------
@@ -264,17 +292,29 @@ class RobustPCAImputer(MaskedImputerBase):
     ((6, 3), False)
     """
 
-    _option_names = ("mu", "tol", "max_iter")
+    _parameter_constraints: dict = {
+        **MaskedImputerBase._parameter_constraints,
+        "lam_factor": [Interval(Real, 0, np.inf, closed="neither")],
+        "center": ["boolean"],
+        "mu": [Interval(Real, 0, np.inf, closed="neither"), None],
+        "tol": [Interval(Real, 0, np.inf, closed="neither")],
+        "max_iter": [Interval(Integral, 1, None, closed="left")],
+    }
 
-    def __init__(self, missing_values=np.nan, *, lam_factor=1.0, center=True, options=None):
+    def __init__(
+        self, missing_values=np.nan, *, lam_factor=1.0, center=True, mu=None, tol=1e-7, max_iter=10000
+    ):
         self.missing_values = missing_values
         self.lam_factor = lam_factor
         self.center = center
-        self.options = options
+        self.mu = mu
+        self.tol = tol
+        self.max_iter = max_iter
 
     def _solve(self, W, mask):
+        solver = {"mu": self.mu, "tol": self.tol, "max_iter": self.max_iter}
         result = rpca_impute(
-            np.where(mask, W, np.nan), mask, lam_factor=self.lam_factor, center=self.center, **self._options()
+            np.where(mask, W, np.nan), mask, lam_factor=self.lam_factor, center=self.center, **solver
         )
         self.rank_ = int(result.rank)
         self.column_centre_ = result.column_centre

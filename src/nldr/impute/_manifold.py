@@ -4,7 +4,7 @@
   (:class:`nldr.robust_kpca.RobustKernelPCA`, the paper's Theorem 3.1 on the training kernel) learnt
   from the fully observed training rows; ``transform`` completes, and with a finite ``rho``
   denoises, rows against it (:meth:`~nldr.robust_kpca.RobustKernelPCA.complete`).
-- :class:`Reconstruction`: any decomposition with ``inverse_transform`` (scikit-learn's ``PCA``,
+- :class:`DecompositionDenoiser`: any decomposition with ``inverse_transform`` (scikit-learn's ``PCA``,
   ``KernelPCA(fit_inverse_transform=True)``) as a denoiser, ``X -> inverse_transform(transform(X))``.
 
 Unlike :class:`~nldr.impute.KernelRegularizerImputer`, neither is transductive: ``transform`` of a
@@ -13,17 +13,19 @@ row depends on the fitted model and that row only, so ``fit_transform(X)`` is ``
 
 from __future__ import annotations
 
+from numbers import Integral, Real
+
 import numpy as np
-from sklearn.base import BaseEstimator, OneToOneFeatureMixin, TransformerMixin, clone
+from sklearn.base import BaseEstimator, OneToOneFeatureMixin, TransformerMixin, _fit_context, clone
+from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._preimage import LOSSES, average_solutions
-from .._spectral import check_eigensolver
-from .._validation import check_count, check_positive
+from .._spectral import EIGENSOLVERS
 from ..robust_kpca import RobustKernelPCA
 from ._base import MaskedImputerBase
 
-__all__ = ["RobustKernelPCAImputer", "Reconstruction"]
+__all__ = ["RobustKernelPCAImputer", "DecompositionDenoiser"]
 
 
 class RobustKernelPCAImputer(MaskedImputerBase):
@@ -151,36 +153,35 @@ class RobustKernelPCAImputer(MaskedImputerBase):
         self.weights = weights
         self.warm_start = warm_start
 
-    def _check_params(self):
-        if self.gamma is not None:
-            check_positive(self.gamma, "gamma")
-        check_positive(self.tau, "tau")
-        for name in ("center", "warm_start"):
-            if not isinstance(getattr(self, name), bool | np.bool_):
-                raise ValueError(f"{name} must be True or False; got {getattr(self, name)!r}")
-        check_eigensolver(self.eigensolver)
-        if self.rho is not None:
-            check_positive(self.rho, "rho")
-        if self.loss not in LOSSES:
-            raise ValueError(f"loss must be one of {LOSSES}; got {self.loss!r}")
+    _parameter_constraints: dict = {
+        **MaskedImputerBase._parameter_constraints,
+        "gamma": [Interval(Real, 0, np.inf, closed="neither"), None],
+        "tau": [Interval(Real, 0, np.inf, closed="neither")],
+        "center": ["boolean"],
+        "eigensolver": [StrOptions(set(EIGENSOLVERS))],
+        "rho": [Interval(Real, 0, np.inf, closed="neither"), None],
+        "loss": [StrOptions(set(LOSSES))],
+        "delta": [Interval(Real, 0, np.inf, closed="neither"), None],
+        "n_neighbors": [Interval(Integral, 1, None, closed="left")],
+        "starts": [StrOptions({"mean", "each"})],
+        "weights": [StrOptions({"uniform", "distance"})],
+        "warm_start": ["boolean"],
+    }
+
+    def _validate_params(self) -> None:
+        """Every parameter against its constraint, then the rule that ties two of them together."""
+        super()._validate_params()
         if self.loss == "huber" and self.delta is None:
             raise ValueError("delta (the Huber threshold, units of X) is required with loss='huber'")
-        if self.delta is not None:
-            check_positive(self.delta, "delta")
-        check_count(self.n_neighbors, "n_neighbors")
-        if self.starts not in ("mean", "each"):
-            raise ValueError(f"starts must be 'mean' or 'each'; got {self.starts!r}")
-        if self.weights not in ("uniform", "distance"):
-            raise ValueError(f"weights must be 'uniform' or 'distance'; got {self.weights!r}")
 
     def _manifold_key(self) -> tuple:
         return (self.gamma, self.tau, bool(self.center), self.eigensolver)
 
+    @_fit_context(prefer_skip_nested_validation=True)
     def fit(self, X, y=None):
         """Learn the manifold from the rows of X (n, n_features) with every entry observed; y is
         ignored. Returns self."""
         W, mask = self._validated(X, reset=True)
-        self._check_params()
         rows = W[mask.all(axis=1)]
         if rows.shape[0] < 2:
             raise ValueError(
@@ -204,6 +205,7 @@ class RobustKernelPCAImputer(MaskedImputerBase):
         self.n_components_ = int(self.model_.n_components_)
         return self
 
+    @_fit_context(prefer_skip_nested_validation=True)
     def fit_transform(self, X, y=None):
         """``fit(X).transform(X)``: X (n, n_features) completed against the manifold learnt from
         its complete rows."""
@@ -213,7 +215,7 @@ class RobustKernelPCAImputer(MaskedImputerBase):
         """Complete (with finite ``rho``, denoise) the rows of X, shape (m, n_features), against the
         learnt manifold. Returns X_hat, shape (m, n_features)."""
         check_is_fitted(self, "model_")
-        self._check_params()
+        self._validate_params()  # transform's knobs may have been set since fit
         W, mask = self._validated(X, reset=False)
         return self._complete(W, mask)
 
@@ -236,12 +238,12 @@ class RobustKernelPCAImputer(MaskedImputerBase):
         return average_solutions(memo["solutions"][:, :k], memo["distance"][:, :k], self.weights)
 
 
-class Reconstruction(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
+class DecompositionDenoiser(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
     """A decomposition as a denoiser: ``transform(X) = estimator.inverse_transform(estimator.transform(X))``.
 
     The estimator (cloned) is fitted on the training rows; each row is replaced by its
-    reconstruction from the fitted components, e.g. ``Reconstruction(PCA(8))`` or
-    ``Reconstruction(KernelPCA(16, kernel="rbf", fit_inverse_transform=True))``. It needs complete
+    reconstruction from the fitted components, e.g. ``DecompositionDenoiser(PCA(8))`` or
+    ``DecompositionDenoiser(KernelPCA(16, kernel="rbf", fit_inverse_transform=True))``. It needs complete
     rows: put a ``SimpleImputer`` before it in a ``Pipeline`` to fill missing entries first.
 
     Parameters
@@ -266,9 +268,9 @@ class Reconstruction(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
     --------
     >>> import numpy as np
     >>> from sklearn.decomposition import PCA
-    >>> from nldr.impute import Reconstruction
+    >>> from nldr.impute import DecompositionDenoiser
     >>> X = np.array([[1.0, 2.0, 3.0], [2.0, 4.1, 5.9], [3.0, 6.1, 9.0], [4.0, 7.9, 12.1]])
-    >>> X_denoised = Reconstruction(PCA(1)).fit_transform(X)
+    >>> X_denoised = DecompositionDenoiser(PCA(1)).fit_transform(X)
     >>> X_denoised.shape, int(np.linalg.matrix_rank(X_denoised - X_denoised.mean(axis=0)))
     ((4, 3), 1)
     """
@@ -276,17 +278,13 @@ class Reconstruction(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
     def __init__(self, estimator=None):
         self.estimator = estimator
 
-    def _check_params(self):
-        needed = ("fit", "transform", "inverse_transform")
-        if not all(callable(getattr(self.estimator, name, None)) for name in needed):
-            raise ValueError(
-                "estimator must have fit, transform and inverse_transform (a decomposition such as "
-                f"PCA); got {self.estimator!r}"
-            )
+    #: a decomposition such as PCA: the three methods the reconstruction calls
+    _parameter_constraints: dict = {"estimator": [HasMethods(["fit", "transform", "inverse_transform"])]}
 
+    # the estimator is the user's, not validated here: its own fit validates it
+    @_fit_context(prefer_skip_nested_validation=False)
     def fit(self, X, y=None):
         """Fit the estimator on X, shape (n, n_features). Returns self."""
-        self._check_params()
         X = validate_data(self, X, dtype=np.float64)
         self.estimator_ = clone(self.estimator).fit(X)
         return self

@@ -2,97 +2,46 @@
 
 from __future__ import annotations
 
-import dataclasses
+from numbers import Integral, Real
 
 import numpy as np
 from sklearn.utils import check_random_state
+from sklearn.utils._param_validation import Interval, StrOptions
 
 from .._baselines._masked import mean_fill, observed_standardisation
-from .._options import ExactOptions, NystroemOptions, last_stage_only, solver_options
+from .._options import last_stage_only, solver_options
 from .._preimage import Subspace, average_solutions, complete_from_starts, nearest_rows
-from .._validation import check_count, check_positive
 from ..data_terms import MaskedHuber, MaskedLeastSquares
-from ..kernels import squared_distances
 from ..model_selection import HoldoutSearch
-from ..regularizer import LONG_SOLVE_ROWS, minimize_regularized
+from ..regularizer import minimize_regularized
 from ._base import MaskedImputerBase
+from ._defaults import (
+    AUTO_EXACT_MAX_ROWS,
+    AUTO_LANDMARKS,
+    AUTO_NYSTROEM_MIN_ROWS,
+    EXACT_OPTIONS,
+    FLAT_OPTIONS,
+    LOSSES,
+    MEDIAN_RULE_MULTIPLE,
+    METHODS,
+    NYSTROEM_OPTIONS,
+    TUNE_FOLDS,
+    TUNE_GAMMA_MULTIPLES,
+    TUNE_HOLDOUT,
+    TUNE_LANDMARKS,
+    TUNE_MIN_ROWS,
+    TUNE_ROW_HIDDEN,
+    TUNE_ROW_SHARE,
+    TUNE_STOP_FACTOR,
+    TUNE_TAUS,
+    TUNE_TOLERANCES,
+    TUNE_TRANSFORM,
+    median_rule_gamma,
+)
 from ._new_rows import NoComponentsError, regularizer_subspace, row_folds, search_transform_knobs
 
-__all__ = [
-    "KernelRegularizerImputer",
-    "AUTO_EXACT_MAX_ROWS",
-    "MEDIAN_RULE_MULTIPLE",
-    "METHODS",
-    "TUNE_GAMMA_MULTIPLES",
-    "TUNE_TAUS",
-    "TUNE_FOLDS",
-    "TUNE_HOLDOUT",
-    "TUNE_MIN_ROWS",
-    "TUNE_TRANSFORM",
-    "TUNE_ROW_SHARE",
-    "TUNE_ROW_HIDDEN",
-    "LOSSES",
-]
+__all__ = ["KernelRegularizerImputer"]
 
-#: data losses of ``loss``
-LOSSES = ("squared", "huber")
-#: solver paths of ``method``: "auto" and minimize_regularized's methods
-METHODS = ("auto", "exact", "nystroem", "nystroem-warm")
-#: keys of ``schedule``: minimize_regularized's penalty schedule
-SCHEDULE_KEYS = ("rho0", "rho_growth", "rho_max")
-#: ``method="auto"`` solves exactly up to this many rows and warm-starts from the Nystroem kernel above
-#: (measured: docs/PERFORMANCE.md#solver-path).
-AUTO_EXACT_MAX_ROWS = 150
-#: from here (where an exact solve warns) "auto" runs every stage on AUTO_LANDMARKS landmarks, no
-#: exact last stage (its eigensolver grows as n^3; measured: docs/PERFORMANCE.md#auto-landmarks)
-AUTO_NYSTROEM_MIN_ROWS, AUTO_LANDMARKS = LONG_SOLVE_ROWS, 200
-#: options "exact" takes (method="auto" drops the others below AUTO_EXACT_MAX_ROWS rows)
-_EXACT_OPTIONS = frozenset(f.name for f in dataclasses.fields(ExactOptions))
-#: minimize_regularized's default penalty schedule
-_DEFAULT_SCHEDULE = {"rho0": 1.0, "rho_max": 1e4}
-#: the default width is this multiple of 1 / (median squared distance between rows), standardised units
-#: (measured: docs/REPRODUCTION.md#imputer-defaults)
-MEDIAN_RULE_MULTIPLE = 0.25
-#: ``gamma="auto"``: the hold-out chooses among these multiples of 1 / (median squared row distance)
-#: (measured: docs/REPRODUCTION.md#imputer-defaults, as are the TUNE_* below)
-TUNE_GAMMA_MULTIPLES = (0.125, 0.25, 0.5, 1.0)
-#: ``tau="auto"``: the hold-out chooses among these taus (standardised units when ``standardize``)
-TUNE_TAUS = (0.1, 0.3)
-#: the tuning's Monte-Carlo hold-out folds: how many, and the share of observed entries each hides
-TUNE_FOLDS = 2
-TUNE_HOLDOUT = 0.1
-#: below this many rows "auto" is not searched: tau 0.1 and the median rule's width
-TUNE_MIN_ROWS = 20
-#: ``n_neighbors="auto"``, ``starts="auto"``: the row folds choose ``transform``'s (n_neighbors, starts)
-#: among these (the second is the choice when the rows are too few to tune)
-TUNE_TRANSFORM = ((1, "mean"), (5, "mean"), (10, "mean"), (5, "each"))
-#: the row folds hold out this share of the training rows, and hide this least share of their entries
-TUNE_ROW_SHARE = 0.2
-TUNE_ROW_HIDDEN = 0.25
-#: the tuning's fold solves stop at these looser tolerances (they only rank candidates)
-_TUNE_TOLERANCES = {"tol": 1e-7, "gtol": 1e-4}
-#: the tuning's fold solves above AUTO_EXACT_MAX_ROWS rows: the Nystroem kernel of this many landmarks
-_TUNE_LANDMARKS = 100
-#: a fold's tau path stops once its error exceeds this factor times the path's best so far
-_TUNE_STOP_FACTOR = 1.5
-_NYSTROEM_OPTIONS = frozenset(f.name for f in dataclasses.fields(NystroemOptions))
-
-
-def _median_rule_gamma(S: np.ndarray) -> float:
-    """``MEDIAN_RULE_MULTIPLE / median ||s_i - s_j||^2`` over the pairs of rows of a complete S (units S^-2).
-
-    The default width of :class:`KernelRegularizerImputer`: the median pair of rows gets kernel value
-    exp(-1/4). Beyond 2000 rows an even subsample of 2000 sets the median.
-    """
-    n = S.shape[0]
-    rows = S if n <= 2000 else S[np.linspace(0, n - 1, 2000).astype(int)]
-    D = squared_distances(rows)
-    med = float(np.median(D[np.triu_indices(rows.shape[0], 1)]))
-    if not med > 0:
-        raise ValueError(
-            "the rows of X (after mean imputation) coincide: the median rule cannot set gamma; pass gamma"
-        )
-    return MEDIAN_RULE_MULTIPLE / med
 
 
 class KernelRegularizerImputer(MaskedImputerBase):
@@ -137,18 +86,40 @@ class KernelRegularizerImputer(MaskedImputerBase):
         "nystroem-warm" above, and "nystroem" on :data:`AUTO_LANDMARKS` landmarks from
         :data:`AUTO_NYSTROEM_MIN_ROWS` rows (an approximate minimiser whose cost grows linearly in
         the rows).
+    n_landmarks : int >= 1 or None, default None
+        Landmark rows of the Nystroem kernel (``options["landmarks"]`` of
+        :func:`~nldr.regularizer.minimize_regularized`), for the Nystroem paths only. None: 100 for
+        "nystroem-warm" (and "auto" between :data:`AUTO_EXACT_MAX_ROWS` and
+        :data:`AUTO_NYSTROEM_MIN_ROWS` rows), :data:`AUTO_LANDMARKS` for "auto" from
+        :data:`AUTO_NYSTROEM_MIN_ROWS` rows; ``method="nystroem"`` needs it, and ``method="exact"``
+        refuses it. "auto" ignores it at or below :data:`AUTO_EXACT_MAX_ROWS` rows.
+    rho0 : float > 0, default 1.0
+        First penalty weight of the schedule (kernel units against the data term's units; the
+        paper's 1).
+    rho_growth : float > 1, default 10.0
+        Factor between consecutive penalty weights (the paper's 10).
+    rho_max : float > 0, default 1e4
+        Last penalty weight (the paper's 1e4; at least ``rho0``).
+    max_iter : int >= 1, default 3000
+        L-BFGS iterations per penalty stage (``options["max_inner"]`` of
+        :func:`~nldr.regularizer.minimize_regularized`).
+    tol : float > 0, default 1e-10
+        A stage stops when the energy's relative decrease per L-BFGS iteration is below tol
+        (L-BFGS's ``ftol``; dimensionless).
+    gtol : float > 0, default 1e-6
+        ... or when the largest gradient entry is below gtol (in the stopping units: the solved
+        matrix's units over ``sqrt(rho0)`` unless ``options["scale"]`` sets them).
     options : dict or None, default None
-        The method's options, as :func:`~nldr.regularizer.minimize_regularized` takes them
-        (tolerances, ``max_inner``, ``eigensolver``, ``landmarks``, ...); an option the method does
-        not take is a ValueError naming the method (raised by every fit, before any solve). "auto"
-        takes the options of "nystroem-warm"; its Nystroem-only ones (``landmarks``,
-        ``landmark_seed``, ``exact_stages``, ``exact_tol``, ``last_landmarks``) apply only above
-        :data:`AUTO_EXACT_MAX_ROWS` rows, and from :data:`AUTO_NYSTROEM_MIN_ROWS` rows only
-        ``landmarks`` (default :data:`AUTO_LANDMARKS`), ``landmark_seed`` and the tolerances. The
-        Nystroem methods' ``landmark_seed`` defaults to a draw from ``random_state``.
-    schedule : dict or None, default None
-        The penalty schedule: ``rho0``, ``rho_growth``, ``rho_max`` of
-        :func:`~nldr.regularizer.minimize_regularized` (None: its defaults 1, 10, 1e4, the paper's).
+        The solver path's rarely tuned options, as :func:`~nldr.regularizer.minimize_regularized`
+        takes them: ``stage_tol``, ``isolation_guard``, ``scale``, ``eigensolver``,
+        ``landmark_seed``, and the Nystroem warm start's ``exact_stages``, ``exact_tol``,
+        ``last_landmarks``. They stay in a dict because they change how a path runs rather than
+        what it minimises, and none is worth a grid. An option the path does not take is a
+        ValueError naming the path (raised by every fit, before any solve); the knobs above are
+        parameters, not options. "auto" takes the options of "nystroem-warm"; its Nystroem-only
+        ones apply only above :data:`AUTO_EXACT_MAX_ROWS` rows, and from
+        :data:`AUTO_NYSTROEM_MIN_ROWS` rows only ``landmark_seed`` and the stopping options. The
+        Nystroem paths' ``landmark_seed`` defaults to a draw from ``random_state``.
     verbose : bool, default False
         Print one line per penalty stage.
     n_neighbors : int >= 1 or "auto", default "auto"
@@ -170,8 +141,8 @@ class KernelRegularizerImputer(MaskedImputerBase):
     warm_start : bool, default False
         A fit after a previous fit on a matrix of the same shape starts from the previous solve's S
         (``result_.x``) and solves the last penalty stage only (rho0 = rho_max), its stopping tests in
-        the units of the full schedule (``options["scale"]`` = sqrt(rho0 of ``schedule``) unless
-        ``options`` sets it). This is how a path of taus or widths is solved cheaply, e.g. by
+        the units of the full schedule (``options["scale"]`` = sqrt(``rho0``) unless ``options``
+        sets it). This is how a path of taus or widths is solved cheaply, e.g. by
         :class:`nldr.model_selection.HoldoutSearch` with ``path="tau"``. The first fit, or one on
         another shape, solves the full schedule from mean imputation. A fit on the previous fit's
         matrix that changes only ``n_neighbors``, ``starts``, ``weights`` or ``verbose`` keeps the
@@ -256,8 +227,14 @@ class KernelRegularizerImputer(MaskedImputerBase):
         standardize=True,
         center=False,
         method="auto",
+        n_landmarks=None,
+        rho0=1.0,
+        rho_growth=10.0,
+        rho_max=1e4,
+        max_iter=3000,
+        tol=1e-10,
+        gtol=1e-6,
         options=None,
-        schedule=None,
         verbose=False,
         n_neighbors="auto",
         starts="auto",
@@ -273,8 +250,14 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self.standardize = standardize
         self.center = center
         self.method = method
+        self.n_landmarks = n_landmarks
+        self.rho0 = rho0
+        self.rho_growth = rho_growth
+        self.rho_max = rho_max
+        self.max_iter = max_iter
+        self.tol = tol
+        self.gtol = gtol
         self.options = options
-        self.schedule = schedule
         self.verbose = verbose
         self.n_neighbors = n_neighbors
         self.starts = starts
@@ -286,36 +269,58 @@ class KernelRegularizerImputer(MaskedImputerBase):
 
     _min_samples = 2
 
-    def _check_params(self):
-        if self.method not in METHODS:
-            raise ValueError(f"method must be one of {METHODS}; got {self.method!r}")
-        if self.starts not in ("mean", "each", "auto"):
-            raise ValueError(f"starts must be 'mean', 'each' or 'auto'; got {self.starts!r}")
-        if self.weights not in ("uniform", "distance"):
-            raise ValueError(f"weights must be 'uniform' or 'distance'; got {self.weights!r}")
-        if not _is_auto(self.n_neighbors):
-            check_count(self.n_neighbors, "n_neighbors (an int >= 1 or 'auto')")
-        tau = "auto" if _is_auto(self.tau) else check_positive(self.tau, "tau (a float > 0 or 'auto')")
-        gamma = self.gamma
-        if not (gamma is None or _is_auto(gamma)):
-            gamma = check_positive(gamma, "gamma (a float > 0, None or 'auto')")
-        if self.options is not None and not isinstance(self.options, dict):
-            raise ValueError(f"options must be a dict of the method's options or None; got {self.options!r}")
-        schedule = {} if self.schedule is None else self.schedule
-        if not isinstance(schedule, dict) or set(schedule) - set(SCHEDULE_KEYS):
-            raise ValueError(
-                f"schedule must be a dict with keys among {SCHEDULE_KEYS} or None; got {schedule!r}"
-            )
-        options = dict(self.options or {})
+    _parameter_constraints: dict = {
+        **MaskedImputerBase._parameter_constraints,
+        "gamma": [Interval(Real, 0, np.inf, closed="neither"), None, StrOptions({"auto"})],
+        "tau": [Interval(Real, 0, np.inf, closed="neither"), StrOptions({"auto"})],
+        "standardize": ["boolean"],
+        "center": ["boolean"],
+        "method": [StrOptions(set(METHODS))],
+        "n_landmarks": [Interval(Integral, 1, None, closed="left"), None],
+        "rho0": [Interval(Real, 0, np.inf, closed="neither")],
+        "rho_growth": [Interval(Real, 1, np.inf, closed="neither")],
+        "rho_max": [Interval(Real, 0, np.inf, closed="neither")],
+        "max_iter": [Interval(Integral, 1, None, closed="left")],
+        "tol": [Interval(Real, 0, np.inf, closed="neither")],
+        "gtol": [Interval(Real, 0, np.inf, closed="neither")],
+        "options": [dict, None],
+        "verbose": ["verbose"],
+        "n_neighbors": [Interval(Integral, 1, None, closed="left"), StrOptions({"auto"})],
+        "starts": [StrOptions({"mean", "each", "auto"})],
+        "weights": [StrOptions({"uniform", "distance"})],
+        "random_state": ["random_state"],
+        "warm_start": ["boolean"],
+        "loss": [StrOptions(set(LOSSES))],
+        "delta": [Interval(Real, 0, np.inf, closed="neither")],
+    }
+
+    def _validate_params(self) -> None:
+        """The constraints above, each parameter alone; then the rules that tie parameters together
+        (run by ``fit`` before anything else, and by HoldoutSearch on every candidate before any fit)."""
+        super()._validate_params()
+        if self.rho_max < self.rho0:
+            raise ValueError(f"rho_max ({self.rho_max!r}) must be at least rho0 ({self.rho0!r})")
+        if self.method == "nystroem" and self.n_landmarks is None:
+            raise ValueError("method='nystroem' needs n_landmarks (the Nystroem kernel's landmark rows)")
+        if self.method == "exact" and self.n_landmarks is not None:
+            raise ValueError("n_landmarks applies to the Nystroem paths; with method='exact' set it to None")
+        flat = sorted(set(self.options or {}) & {*FLAT_OPTIONS, *FLAT_OPTIONS.values()})
+        if flat:
+            names = {v: k for k, v in FLAT_OPTIONS.items()}
+            hint = ", ".join(f"{names.get(k, k)}=" for k in flat)
+            raise ValueError(f"options {flat} are parameters of {type(self).__name__}: pass {hint}")
+        options = self._solver_options()
         if self.method != "exact":
             options.setdefault("landmark_seed", 0)  # drawn from random_state at fit
         solver_options("nystroem-warm" if self.method == "auto" else self.method, options)
-        if not isinstance(self.warm_start, bool | np.bool_):
-            raise ValueError(f"warm_start must be True or False; got {self.warm_start!r}")
-        if self.loss not in LOSSES:
-            raise ValueError(f"loss must be one of {LOSSES}; got {self.loss!r}")
-        check_positive(self.delta, "delta")
-        return gamma, tau
+
+    def _solver_options(self) -> dict:
+        """minimize_regularized's options: ``options`` with the flat parameters written in."""
+        options = dict(self.options or {})
+        options.update(max_inner=self.max_iter, tol=self.tol, gtol=self.gtol)
+        if self.n_landmarks is not None:
+            options["landmarks"] = self.n_landmarks
+        return options
 
     def _standardisation(self, W, mask):
         if not self.standardize:
@@ -323,25 +328,26 @@ class KernelRegularizerImputer(MaskedImputerBase):
         return observed_standardisation(W, mask)
 
     def _solver_arguments(self, n: int, warm: bool) -> tuple[str, dict]:
-        """The solver path and minimize_regularized's keyword arguments (checked by _check_params).
-        ``warm``: the last penalty stage only, in the stopping units of the full schedule."""
+        """The solver path and minimize_regularized's keyword arguments (checked by
+        _validate_params). ``warm``: the last penalty stage only, in the stopping units of the full
+        schedule."""
         method = self.method
         if method == "auto":
             method = "exact" if n <= AUTO_EXACT_MAX_ROWS else "nystroem-warm"
             method = "nystroem" if n >= AUTO_NYSTROEM_MIN_ROWS else method
-        schedule = dict(self.schedule or {})
-        options = dict(self.options or {})
+        schedule = {"rho0": self.rho0, "rho_growth": self.rho_growth, "rho_max": self.rho_max}
+        options = self._solver_options()
         if method == "exact":
-            options = {k: v for k, v in options.items() if k in _EXACT_OPTIONS}
+            options = {k: v for k, v in options.items() if k in EXACT_OPTIONS}
         elif method == "nystroem" and self.method == "auto":
-            kept = {k: v for k, v in options.items() if k in _NYSTROEM_OPTIONS}
+            kept = {k: v for k, v in options.items() if k in NYSTROEM_OPTIONS}
             options = {"landmarks": AUTO_LANDMARKS, **kept}
         if method != "exact" and "landmark_seed" not in options:
             options["landmark_seed"] = int(
                 check_random_state(self.random_state).randint(np.iinfo(np.int32).max)
             )
         kwargs = {"method": method, "options": options, "verbose": bool(self.verbose), **schedule}
-        return method, last_stage_only(kwargs, **_DEFAULT_SCHEDULE) if warm else kwargs
+        return method, last_stage_only(kwargs) if warm else kwargs
 
     def _grid(self, gamma, tau, median_rule: float) -> dict:
         """The tuning's candidates: every "auto" knob over its grid, the others at their one value."""
@@ -373,7 +379,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
             holdout=TUNE_HOLDOUT,
             random_state=seed,
             path="tau",
-            stop_factor=_TUNE_STOP_FACTOR,
+            stop_factor=TUNE_STOP_FACTOR,
             fold_params=fold_params,
             refit=False,
             verbose=bool(self.verbose),
@@ -425,14 +431,16 @@ class KernelRegularizerImputer(MaskedImputerBase):
         """The tuning's fold solves: the exact kernel up to AUTO_EXACT_MAX_ROWS rows, the Nystroem kernel
         above, at looser tolerances (they only rank candidates)."""
         if n <= AUTO_EXACT_MAX_ROWS:
-            options = {k: v for k, v in (self.options or {}).items() if k in _EXACT_OPTIONS}
-            return {"method": "exact", "options": {**options, **_TUNE_TOLERANCES}}
-        options = {k: v for k, v in (self.options or {}).items() if k in _NYSTROEM_OPTIONS}
-        options = {"landmarks": _TUNE_LANDMARKS, "landmark_seed": self._tune_seed(), **options}
-        return {"method": "nystroem", "options": {**options, **_TUNE_TOLERANCES}}
+            options = {k: v for k, v in (self.options or {}).items() if k in EXACT_OPTIONS}
+            return {"method": "exact", "n_landmarks": None, "options": options or None, **TUNE_TOLERANCES}
+        options = {k: v for k, v in (self.options or {}).items() if k in NYSTROEM_OPTIONS}
+        options = {"landmark_seed": self._tune_seed(), **options}
+        landmarks = TUNE_LANDMARKS if self.n_landmarks is None else self.n_landmarks
+        return {"method": "nystroem", "n_landmarks": landmarks, "options": options, **TUNE_TOLERANCES}
 
     def _solve(self, W, mask):
-        gamma, tau = self._check_params()
+        gamma = None if self.gamma is None else self.gamma if _is_auto(self.gamma) else float(self.gamma)
+        tau = "auto" if _is_auto(self.tau) else float(self.tau)
         if self._keeps_solve(W, mask):  # a warm refit that changes only transform's knobs
             self._transform_knobs(W.shape[0])
             return self.completed_, self.result_
@@ -444,7 +452,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         warm = previous is not None and previous.shape == W.shape
         if warm:  # the previous estimate, in this fit's (standardised) units
             S0 = previous if not self.standardize else (previous - self.mean_) / self.scale_
-        median_rule = _median_rule_gamma(mean_fill(Z, mask)) if gamma is None or _is_auto(gamma) else None
+        median_rule = median_rule_gamma(mean_fill(Z, mask)) if gamma is None or _is_auto(gamma) else None
         grid = self._grid(gamma, tau, median_rule)
         tuned = (_is_auto(gamma) or _is_auto(tau)) and W.shape[0] >= TUNE_MIN_ROWS
         if tuned:

@@ -35,25 +35,22 @@ cold solve (both when the estimator offers ``warm_start``). A path stops once a 
 error exceeds ``stop_factor`` times the path's best so far (the collapsing solves are the slowest).
 ``fold_params`` can give the fold solves looser tolerances or the Nystroem kernel (they only rank
 candidates; the refit stays exact); the folds run in parallel with ``n_jobs``; every solve uses the
-isolation guard (:func:`nldr.regularizer.isolation_safe_rho0`), so a large tau cannot push hidden
+isolation guard (:func:`nldr._schedule.isolation_safe_rho0`), so a large tau cannot push hidden
 entries away.
 
 What the search chooses on the paper's data, and where it cannot find the ground-truth-best width:
 docs/REPRODUCTION.md#selection.
 """
 
-from ._folds import DEFAULT_TAUS, GAMMA_MULTIPLES, holdout_folds, median_gamma
-from ._robust import HUBER_EFFICIENCY, RobustScaleDelta, robust_scale
-from ._search import EntryFolds, HoldoutSearch
+from ._folds import EntryFolds, holdout_folds, median_gamma
+from ._robust import RobustScaleDelta, robust_scale
+from ._search import HoldoutSearch
 
 __all__ = [
     "HoldoutSearch",
     "EntryFolds",
-    "DEFAULT_TAUS",
-    "GAMMA_MULTIPLES",
     "median_gamma",
     "holdout_folds",
-    "HUBER_EFFICIENCY",
     "RobustScaleDelta",
     "robust_scale",
 ]

@@ -10,6 +10,7 @@ from .._validation import check_count
 from ..kernels import squared_distances
 
 __all__ = [
+    "EntryFolds",
     "DEFAULT_TAUS",
     "GAMMA_MULTIPLES",
     "median_gamma",
@@ -111,3 +112,28 @@ def fold_score(X_hat: np.ndarray, W: np.ndarray, hidden: np.ndarray, score: str 
     if score == "absolute":
         return float(np.abs(diff).sum()) / diff.size
     return float(diff @ diff) / diff.size
+
+
+class EntryFolds:
+    """Masked-entry folds of the observed entries of X (:func:`~nldr.model_selection.holdout_folds`).
+
+    Parameters
+    ----------
+    n_folds : int >= 2, default 5
+    holdout : float in (0, 1) or None, default None
+        None: the folds partition the observed entries; a share: each fold hides that share afresh.
+    random_state : int, default 0
+        Seed of the shuffles: same mask and seed, same folds.
+    """
+
+    def __init__(self, n_folds: int = 5, *, holdout: float | None = None, random_state=0):
+        self.n_folds = n_folds
+        self.holdout = holdout
+        self.random_state = random_state
+
+    def split(self, X) -> list[np.ndarray]:
+        """Hidden-entry masks, one bool array of X's shape per fold (True: hidden)."""
+        return holdout_folds(~np.isnan(X), self.n_folds, self.random_state, holdout=self.holdout)
+
+    def __repr__(self) -> str:
+        return f"EntryFolds(n_folds={self.n_folds}, holdout={self.holdout}, random_state={self.random_state})"

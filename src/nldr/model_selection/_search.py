@@ -11,52 +11,28 @@ from __future__ import annotations
 import copy
 import time
 from collections.abc import Callable, Mapping, Sequence
+from numbers import Integral, Real
 
 import numpy as np
 import pandas as pd
-from sklearn.base import BaseEstimator, TransformerMixin, clone
+from sklearn.base import BaseEstimator, TransformerMixin, _fit_context, clone
 from sklearn.model_selection import ParameterGrid
+from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 
 from .._cv import run_jobs, say, summarise_folds
 from .._threads import single_blas_thread
-from .._validation import check_count, check_positive
-from ._folds import SCORES, fold_score, holdout_folds
+from ._folds import SCORES, EntryFolds, fold_score
 from ._rules import RULES, choose, reference_index
 
-__all__ = ["HoldoutSearch", "EntryFolds", "RULES"]
+__all__ = ["HoldoutSearch", "RULES"]
 
-
-
-class EntryFolds:
-    """Masked-entry folds of the observed entries of X (:func:`~nldr.model_selection.holdout_folds`).
-
-    Parameters
-    ----------
-    n_folds : int >= 2, default 5
-    holdout : float in (0, 1) or None, default None
-        None: the folds partition the observed entries; a share: each fold hides that share afresh.
-    random_state : int, default 0
-        Seed of the shuffles: same mask and seed, same folds.
-    """
-
-    def __init__(self, n_folds: int = 5, *, holdout: float | None = None, random_state=0):
-        self.n_folds = n_folds
-        self.holdout = holdout
-        self.random_state = random_state
-
-    def split(self, X) -> list[np.ndarray]:
-        """Hidden-entry masks, one bool array of X's shape per fold (True: hidden)."""
-        return holdout_folds(~np.isnan(X), self.n_folds, self.random_state, holdout=self.holdout)
-
-    def __repr__(self) -> str:
-        return f"EntryFolds(n_folds={self.n_folds}, holdout={self.holdout}, random_state={self.random_state})"
 
 
 def _validate(estimator) -> None:
-    """The estimator's own parameter validation, without fitting: scikit-learn's declared constraints
-    (``_parameter_constraints``) and the library imputers' ``_check_params``, where they exist, of the
-    estimator and of the estimators among its parameters (a Pipeline's steps, IterativeImputer's
-    regressor)."""
+    """The estimator's own parameter validation, without fitting: scikit-learn's
+    ``_validate_params`` (its declared ``_parameter_constraints``; the library's estimators add their
+    cross-parameter rules to it), of the estimator and of the estimators among its parameters (a
+    Pipeline's steps, IterativeImputer's regressor)."""
     for value in estimator.get_params(deep=False).values():
         if isinstance(value, BaseEstimator):
             _validate(value)
@@ -66,8 +42,6 @@ def _validate(estimator) -> None:
                     _validate(item[1])
     if hasattr(estimator, "_parameter_constraints") and hasattr(estimator, "_validate_params"):
         estimator._validate_params()
-    if callable(getattr(estimator, "_check_params", None)):
-        estimator._check_params()
 
 
 def _score(scoring, X, X_hat, hidden) -> float:
@@ -364,6 +338,28 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
 
     # -- validation, all before the first fit ---------------------------------------------------
 
+    _parameter_constraints: dict = {
+        "estimator": [HasMethods(["fit", "fit_transform"])],
+        "param_grid": [dict, list],
+        "n_folds": [Interval(Integral, 2, None, closed="left")],
+        "holdout": [Interval(Real, 0, 1, closed="neither"), None],
+        "random_state": [Interval(Integral, 0, None, closed="left"), np.random.Generator, None],
+        "folds": [HasMethods(["split"]), "array-like", None],
+        "rule": [StrOptions(set(RULES))],
+        "prefer": [list, tuple],
+        "scoring": [StrOptions(set(SCORES)), callable],
+        "fold_params": [dict, None],
+        "path": [str, None],
+        "stop_factor": [Interval(Real, 1, np.inf, closed="neither"), None],
+        "derive": [callable, None],
+        "reference": [dict, None],
+        "min_move": [Interval(Real, 0, np.inf, closed="left"), None],
+        "refit": ["boolean"],
+        "n_jobs": [Interval(Integral, 1, None, closed="left")],
+        "error_score": [StrOptions({"raise"}), Real],
+        "verbose": ["verbose"],
+    }
+
     def _candidates(self) -> list[dict]:
         try:
             candidates = list(ParameterGrid(self.param_grid))
@@ -390,22 +386,11 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
                 raise ValueError(f"prefer: {name.lstrip('-')!r} is not a parameter of every candidate")
         return candidates
 
-    def _check_options(self):
-        if self.rule not in RULES:
-            raise ValueError(f"rule must be one of {RULES}; got {self.rule!r}")
-        if not (callable(self.scoring) or self.scoring in SCORES):
-            raise ValueError(f"scoring must be one of {SCORES} or a callable; got {self.scoring!r}")
-        if self.stop_factor is not None and not check_positive(self.stop_factor, "stop_factor") > 1:
-            raise ValueError(f"stop_factor must be > 1 or None; got {self.stop_factor}")
+    def _validate_params(self):
+        """The declared constraints, then the rule that ties two parameters together."""
+        super()._validate_params()
         if self.stop_factor is not None and self.path is None:
             raise ValueError("stop_factor applies along a path: set path too, or stop_factor=None")
-        if not (self.error_score == "raise" or isinstance(self.error_score, (int, float))):
-            raise ValueError(f"error_score must be 'raise' or a number; got {self.error_score!r}")
-        check_count(self.n_jobs, "n_jobs")
-        if self.min_move is not None:
-            move = float(self.min_move)
-            if not (np.isfinite(move) and move >= 0):
-                raise ValueError(f"min_move must be a finite number >= 0 or None; got {self.min_move!r}")
 
     def _folds(self, X) -> list[_Fold]:
         observed = ~np.isnan(X)
@@ -451,7 +436,6 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
             raise ValueError(f"X must be a non-empty 2-d array (NaN where missing); got shape {X.shape}")
         if np.isinf(X).any():
             raise ValueError("X has infinite entries; mark missing entries with NaN")
-        self._check_options()
         candidates = self._candidates()
         reference = reference_index(candidates, self.rule, self.reference)
         folds = self._folds(X)
@@ -471,7 +455,7 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
         def done(finished, total, seconds):
             say(self.verbose, "HoldoutSearch", f"folds done: {finished}/{total} ({seconds:.1f} s)")
 
-        per_fold = run_jobs(jobs, check_count(self.n_jobs, "n_jobs"), done)
+        per_fold = run_jobs(jobs, int(self.n_jobs), done)
         self._results(candidates, per_fold, reference)
         self.folds_ = [fold.hidden for fold in folds]
         self.n_splits_ = len(folds)
@@ -537,6 +521,8 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
             est.set_params(**self.derive(clone(est), X))
         return est
 
+    # the estimator and its candidates are the user's: validated by _candidates, not skipped
+    @_fit_context(prefer_skip_nested_validation=False)
     def fit(self, X, y=None):
         """Search on X (array (n, d), NaN where missing) and, with ``refit``, fit the chosen candidate."""
         X = self._search(X)
@@ -545,6 +531,7 @@ class HoldoutSearch(TransformerMixin, BaseEstimator):
                 self.best_estimator_ = self._best(X).fit(X)
         return self
 
+    @_fit_context(prefer_skip_nested_validation=False)
     def fit_transform(self, X, y=None):
         """Search on X, refit the chosen candidate with its ``fit_transform(X)`` and return that (n, d)."""
         X = self._search(X)

@@ -1,0 +1,98 @@
+"""The defaults of :class:`~nldr.impute.KernelRegularizerImputer`: its solver paths and the grids, folds
+and tolerances of its ``"auto"`` tuning. Where a value was measured, its comment names the docs anchor."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from .._options import ExactOptions, NystroemOptions
+from ..kernels import squared_distances
+from ..regularizer import LONG_SOLVE_ROWS
+
+__all__ = [
+    "median_rule_gamma",
+    "LOSSES",
+    "METHODS",
+    "FLAT_OPTIONS",
+    "RARE_OPTIONS",
+    "AUTO_EXACT_MAX_ROWS",
+    "AUTO_NYSTROEM_MIN_ROWS",
+    "AUTO_LANDMARKS",
+    "EXACT_OPTIONS",
+    "MEDIAN_RULE_MULTIPLE",
+    "TUNE_GAMMA_MULTIPLES",
+    "TUNE_TAUS",
+    "TUNE_FOLDS",
+    "TUNE_HOLDOUT",
+    "TUNE_MIN_ROWS",
+    "TUNE_TRANSFORM",
+    "TUNE_ROW_SHARE",
+    "TUNE_ROW_HIDDEN",
+    "TUNE_TOLERANCES",
+    "TUNE_LANDMARKS",
+    "TUNE_STOP_FACTOR",
+    "NYSTROEM_OPTIONS",
+]
+
+#: data losses of ``loss``
+LOSSES = ("squared", "huber")
+#: solver paths of ``method``: "auto" and minimize_regularized's methods
+METHODS = ("auto", "exact", "nystroem", "nystroem-warm")
+#: the constructor parameters that set minimize_regularized's options, and the option each sets
+FLAT_OPTIONS = {"max_iter": "max_inner", "tol": "tol", "gtol": "gtol", "n_landmarks": "landmarks"}
+#: the options that stay in ``options`` (rarely tuned: a solver path's internals)
+RARE_OPTIONS = ("stage_tol", "isolation_guard", "scale", "eigensolver", "landmark_seed", "exact_stages",
+                 "exact_tol", "last_landmarks")  # fmt: skip
+#: ``method="auto"`` solves exactly up to this many rows and warm-starts from the Nystroem kernel above
+#: (measured: docs/PERFORMANCE.md#solver-path).
+AUTO_EXACT_MAX_ROWS = 150
+#: from here (where an exact solve warns) "auto" runs every stage on AUTO_LANDMARKS landmarks, no
+#: exact last stage (its eigensolver grows as n^3; measured: docs/PERFORMANCE.md#auto-landmarks)
+AUTO_NYSTROEM_MIN_ROWS, AUTO_LANDMARKS = LONG_SOLVE_ROWS, 200
+#: options "exact" takes (method="auto" drops the others below AUTO_EXACT_MAX_ROWS rows)
+EXACT_OPTIONS = frozenset(f.name for f in dataclasses.fields(ExactOptions))
+#: the default width is this multiple of 1 / (median squared distance between rows), standardised units
+#: (measured: docs/REPRODUCTION.md#imputer-defaults)
+MEDIAN_RULE_MULTIPLE = 0.25
+#: ``gamma="auto"``: the hold-out chooses among these multiples of 1 / (median squared row distance)
+#: (measured: docs/REPRODUCTION.md#imputer-defaults, as are the TUNE_* below)
+TUNE_GAMMA_MULTIPLES = (0.125, 0.25, 0.5, 1.0)
+#: ``tau="auto"``: the hold-out chooses among these taus (standardised units when ``standardize``)
+TUNE_TAUS = (0.1, 0.3)
+#: the tuning's Monte-Carlo hold-out folds: how many, and the share of observed entries each hides
+TUNE_FOLDS = 2
+TUNE_HOLDOUT = 0.1
+#: below this many rows "auto" is not searched: tau 0.1 and the median rule's width
+TUNE_MIN_ROWS = 20
+#: ``n_neighbors="auto"``, ``starts="auto"``: the row folds choose ``transform``'s (n_neighbors, starts)
+#: among these (the second is the choice when the rows are too few to tune)
+TUNE_TRANSFORM = ((1, "mean"), (5, "mean"), (10, "mean"), (5, "each"))
+#: the row folds hold out this share of the training rows, and hide this least share of their entries
+TUNE_ROW_SHARE = 0.2
+TUNE_ROW_HIDDEN = 0.25
+#: the tuning's fold solves stop at these looser tolerances (they only rank candidates)
+TUNE_TOLERANCES = {"tol": 1e-7, "gtol": 1e-4}
+#: the tuning's fold solves above AUTO_EXACT_MAX_ROWS rows: the Nystroem kernel of this many landmarks
+TUNE_LANDMARKS = 100
+#: a fold's tau path stops once its error exceeds this factor times the path's best so far
+TUNE_STOP_FACTOR = 1.5
+NYSTROEM_OPTIONS = frozenset(f.name for f in dataclasses.fields(NystroemOptions))
+
+
+def median_rule_gamma(S: np.ndarray) -> float:
+    """``MEDIAN_RULE_MULTIPLE / median ||s_i - s_j||^2`` over the pairs of rows of a complete S (units S^-2).
+
+    The default width of :class:`~nldr.impute.KernelRegularizerImputer`: the median pair of rows gets
+    kernel value exp(-1/4). Beyond 2000 rows an even subsample of 2000 sets the median.
+    """
+    n = S.shape[0]
+    rows = S if n <= 2000 else S[np.linspace(0, n - 1, 2000).astype(int)]
+    D = squared_distances(rows)
+    med = float(np.median(D[np.triu_indices(rows.shape[0], 1)]))
+    if not med > 0:
+        raise ValueError(
+            "the rows of X (after mean imputation) coincide: the median rule cannot set gamma; pass gamma"
+        )
+    return MEDIAN_RULE_MULTIPLE / med
