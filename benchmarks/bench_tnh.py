@@ -3,8 +3,10 @@ missing-data protocols.
 
 Run as ``OPENBLAS_NUM_THREADS=1 python benchmarks/bench_tnh.py SUBCOMMAND [options]``. The protocol of
 the paper's Table 3 (linear columns): every ``--step``-th frame from the first (10: Table 3), 41
-points, original units, ground-truth cameras; TNH through :func:`nldr.nrsfm.trace_norm_heuristic`;
-e3D by :func:`nldr.nrsfm.e3d`, the paper's TNH e3D from :mod:`nldr.paper` beside it.
+points, original units, ground-truth cameras; TNH by the private
+``nldr.nrsfm._reconstruct.trace_norm_heuristic`` (what ``reconstruct(..., prior="tnh")`` runs, with
+each solver's options); e3D by :func:`nldr.nrsfm.e3d`, the paper's TNH e3D from :mod:`nldr.paper`
+beside it.
 
 ``solvers``: TNH's exact fit (the paper's tau = 1e-7 is numerically the exact-fit problem) by each of
 ``--solvers``: ``ADMM`` (``method="admm"``, the library's default), ``SCS`` and ``CLARABEL``

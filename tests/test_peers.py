@@ -1,5 +1,5 @@
 """The peers: SoftImpute (nldr._baselines.peers) against its optimality condition and cvxpy; the
-scikit-learn imputers as nldr.impute.baseline_grid configures them (synthetic data, fast)."""
+scikit-learn imputers as nldr.impute._grids.baseline_grid configures them (synthetic data, fast)."""
 
 import numpy as np
 import pytest

@@ -1,7 +1,7 @@
 """SoftImpute, nuclear-norm completion (Mazumder, Hastie & Tibshirani 2010), implemented in numpy: a
 peer of the regularizer (not in the paper). Its knob is ``lam``, the weight of the nuclear norm (units
 of W). scikit-learn's ``KNNImputer`` and ``IterativeImputer`` (and missForest as an
-``IterativeImputer`` of extra trees) are used as they are: :func:`nldr.impute.baseline_grid`
+``IterativeImputer`` of extra trees) are used as they are: :func:`nldr.impute._grids.baseline_grid`
 gives them with their hold-out grids.
 
 SoftImpute. It minimises ``f(Z) = 1/2 ||P_O(Z - W)||_F^2 + lam ||Z||_*`` over Z (n, d), where P_O keeps
@@ -124,7 +124,7 @@ def soft_impute(
         True where ``W`` is observed; every column needs an observed entry.
     lam : float >= 0
         Weight of the nuclear norm, in the units of W (a singular value is shrunk by lam).
-        :func:`nldr.impute.baseline_grid` gives a grid relative to the largest singular
+        :func:`nldr.impute._grids.baseline_grid` gives a grid relative to the largest singular
         value of the (centred) mean-filled matrix, above which Z = 0.
     center : bool, default True
         Complete ``W - 1 mu^T`` (mu: observed column means) and add mu back (module docstring).

@@ -10,7 +10,7 @@ every method of ``methods``:
 - ``Ours``: :class:`~nldr.impute.KernelRegularizerImputer` with no arguments (its defaults choose its
   own settings from the observed entries);
 - the peers at their authors' recommended settings, each knob chosen by
-  :class:`~nldr.model_selection.HoldoutSearch` over :func:`~nldr.impute.baseline_grid`
+  :class:`~nldr.model_selection.HoldoutSearch` over :func:`~nldr.impute._grids.baseline_grid`
   (``grids`` may replace a grid): ``missForest`` (100 trees), ``GP-LVM`` (GPy, latent dimension and
   inducing points), ``KNNImputer``, ``IterativeImputer`` (BayesianRidge, no knob), ``SoftImpute``;
 - ``mean``: the column means, the floor.
@@ -107,7 +107,7 @@ def _gplvm():
 def make_estimators(methods, W, grids: Mapping | None = None) -> dict:
     """method -> (unfitted estimator, param grid) for the masked, standardised matrix W (NaN missing).
 
-    ``grids`` (method -> grid) replaces :func:`~nldr.impute.baseline_grid`'s grid of a method.
+    ``grids`` (method -> grid) replaces :func:`~nldr.impute._grids.baseline_grid`'s grid of a method.
     """
     from ..impute import KernelRegularizerImputer
 

@@ -22,7 +22,7 @@ Every search is :class:`nldr.model_selection.HoldoutSearch`:
 - ``RPCA``: principal component pursuit (:class:`nldr.impute.RobustPCAImputer`), its weight lam as a
   multiple of Candes et al.'s;
 - ``SoftImpute``: its low-rank fit Z + mu on every entry (the imputed matrix would return the outliers
-  unchanged), its lam on the grid of :func:`~nldr.impute.baseline_grid`;
+  unchanged), its lam on the grid of :func:`~nldr.impute._grids.baseline_grid`;
 - ``KNNImputer``: scikit-learn's, which fills missing entries and keeps the observed ones (with their
   outliers): what an imputer does with corrupted data.
 

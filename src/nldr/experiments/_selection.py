@@ -12,7 +12,7 @@ seed + k). Rows, per job:
 - ``Ours (oracle grid point)``: the grid point with the lowest error against the complete matrix.
   It sees ground truth, so it is a reference for how good the grid can be, never a result;
 - ``<baseline> (CV)``: each baseline and peer with a knob, its knob chosen by the same search over
-  :func:`nldr.impute.baseline_grid` (IterativeImputer has no knob and is fitted once).
+  :func:`nldr.impute._grids.baseline_grid` (IterativeImputer has no knob and is fitted once).
 
 The error is Table 2's: the sum of squared errors over the whole n x d matrix.
 """

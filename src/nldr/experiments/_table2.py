@@ -47,7 +47,7 @@ __all__ = [
 
 # Paper order; "Ours" is the regularizer of Algorithm 1 with the masked least-squares data term.
 METHODS = ("mean", "1-NN", "PPCA", "PKPCA", "RKPCA", "Ours")
-#: The peers (not in the paper), names of :func:`nldr.impute.baseline_grid`.
+#: The peers (not in the paper), names of :func:`nldr.impute._grids.baseline_grid`.
 PEERS = ("KNNImputer", "IterativeImputer", "SoftImpute", "missForest")
 #: Their rows, in this order after the paper's: "(CV)" where a knob was chosen by CV (IterativeImputer
 #: has none); missForest's label names its trees when they are not its recommended 100
@@ -193,7 +193,7 @@ def run_peers(
     progress: Callable[[str], None] | None = None,
 ) -> pd.DataFrame:
     """Complete the mask of :func:`run_mask` (same p and seed) with each peer, its knob chosen by
-    :class:`~nldr.model_selection.HoldoutSearch` over :func:`~nldr.impute.baseline_grid` on
+    :class:`~nldr.model_selection.HoldoutSearch` over :func:`~nldr.impute._grids.baseline_grid` on
     the observed entries (folds seeded by the mask's seed; a peer without a knob is fitted once).
 
     Parameters

@@ -1,6 +1,6 @@
 """TNH by ADMM with known cameras: the exact fit (:func:`solve_admm`, the default backend of
-:func:`~nldr.nrsfm.trace_norm_heuristic`) and the robust TNH (:func:`robust_trace_norm_heuristic`),
-one loop whose only difference is the residual block.
+:func:`~nldr.nrsfm._reconstruct.trace_norm_heuristic`) and the robust TNH
+(:func:`robust_trace_norm_heuristic`), one loop whose only difference is the residual block.
 
 Problems (shapes as rows X (F, 3P), tracks W (F, 2P), cameras R (F, 2, 3), visibility (F, P); A X the
 observed projections, b the observed tracks)::

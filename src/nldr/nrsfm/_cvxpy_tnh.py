@@ -1,5 +1,6 @@
 """TNH as a conic program through cvxpy: the reference backend of
-:func:`~nldr.nrsfm.trace_norm_heuristic` (``method="cvxpy"``), and :class:`CvxpyTNH` for tau sweeps.
+:func:`~nldr.nrsfm._reconstruct.trace_norm_heuristic` (``method="cvxpy"``), and :class:`CvxpyTNH` for tau
+sweeps.
 
 cvxpy is an optional dependency (``pip install nldr[cvxpy]``); importing this module without it raises
 an ImportError that says so. cvxpy turns ||X||_* into a semidefinite cone of order F + 3P: the

@@ -20,7 +20,7 @@ third the depths. Then (1) becomes
 in which a camera can turn while the image fit stays (the depths follow). :func:`joint_value_grad`
 evaluates (2) and its gradient with Q_f = A(q_f) Q0_f (A(q) the rotation of q / |q|, q = (1, 0, 0, 0) at
 the start); :func:`solve_joint_kernel` minimises it by L-BFGS over (Z, q), one stage per rho of the
-regularizer's penalty method (:func:`~nldr.regularizer.penalty_method`), re-centring the rotations
+regularizer's penalty method (:func:`~nldr._penalty.penalty_method`), re-centring the rotations
 after every stage. Gradient in S by the envelope theorem (:mod:`nldr._reduced`); with G_f = d reg /
 d s_f: dE/dZ_f = Q_f G_f and dE/dQ_f = Z_f G_f^T.
 
@@ -198,10 +198,10 @@ def solve_joint_kernel(
 ) -> JointKernelResult:
     """Minimise the paper's energy (1) over cameras and shapes together, by the penalty method.
 
-    For rho = rho0, rho0 rho_growth, ... <= rho_max (:func:`~nldr.regularizer.penalty_schedule`,
+    For rho = rho0, rho0 rho_growth, ... <= rho_max (:func:`~nldr._schedule.penalty_schedule`,
     isolation guard included as in :func:`~nldr.regularizer.minimize_regularized`), L-BFGS on the
     scaled (2) of the module docstring over the camera-frame shapes Z and local quaternions q, from the
-    previous stage's cameras and shapes; the stages run in :func:`~nldr.regularizer.penalty_method`.
+    previous stage's cameras and shapes; the stages run in :func:`~nldr._penalty.penalty_method`.
 
     Parameters
     ----------

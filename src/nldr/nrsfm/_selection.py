@@ -322,7 +322,7 @@ def select_kernel(
         As in :func:`select_tnh_tau`; with ``tnh``, the mask it was selected on.
     R : array, shape (F, 2, 3), optional
         Known cameras. Each fold (and the refit) starts from the exact-fit TNH of its training points
-        (:func:`~nldr.nrsfm.trace_norm_heuristic` with ``tnh_options``).
+        (:func:`~nldr.nrsfm._reconstruct.trace_norm_heuristic` with ``tnh_options``).
     tnh : NRSfMSelection, optional
         Unknown cameras: its folds are reused, each fold starts from that fold's TNH (cameras and shapes)
         at the selected tau; every fold solve and the refit (from ``tnh.result_``) optimise cameras and

@@ -7,7 +7,7 @@ in its exact-fit limit (tau -> 0)::
     min_X  tau ||X||_*  +  sum_{f,j} Z_fj ||w_f(x_j) - R_f s_f(x_j)||^2
     min_X  ||X||_*   subject to   R_f s_f(x_j) = w_f(x_j)  for every observed (f, j)
 
-The entry point is :func:`~nldr.nrsfm.trace_norm_heuristic` (backends :mod:`nldr.nrsfm._admm` and
+The entry point is :func:`~nldr.nrsfm._reconstruct.trace_norm_heuristic` (backends :mod:`nldr.nrsfm._admm` and
 :mod:`nldr.nrsfm._cvxpy_tnh`); :func:`fista_tnh` is the shape step of Table 4's camera/shape alternation
 (:mod:`nldr.nrsfm._camera_refinement`).
 
@@ -53,7 +53,7 @@ class TNHSolveError(RuntimeError):
 
 @dataclass(kw_only=True, repr=False)
 class TNHResult(SolverResult):
-    """Result of a TNH solve (:func:`~nldr.nrsfm.trace_norm_heuristic`, :func:`fista_tnh`), a
+    """Result of a TNH solve (:func:`~nldr.nrsfm._reconstruct.trace_norm_heuristic`, :func:`fista_tnh`), a
     :class:`~nldr.result.SolverResult`.
 
     Attributes

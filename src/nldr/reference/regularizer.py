@@ -362,7 +362,7 @@ def minimize_regularized_alternation(
     center : bool, default=False
         Double-centre the kernel (H K H).
     rho0, rho_growth, rho_max : float, defaults 1.0, 10.0, 1e4
-        The penalty schedule (:func:`nldr.regularizer.penalty_schedule`).
+        The penalty schedule (:func:`nldr._schedule.penalty_schedule`).
     max_inner : int, default=100
         Per-stage limit of sweeps (one C-step and one S-step each).
     tol : float > 0, default=1e-6
