@@ -46,8 +46,8 @@ MUTANTS = [
     Mutant(
         "atomic writes: a job script bypasses the helpers",
         "workflow/scripts/run_job.py",
-        "write_csv(sm.output.table, output.rows)",
-        "output.rows.to_csv(sm.output.table, index=False)",
+        "write_csv(sm.output.table, results.rows)",
+        "results.rows.to_csv(sm.output.table, index=False)",
         ("tests/test_atomic_writes.py",),
     ),
     Mutant(
@@ -68,15 +68,16 @@ MUTANTS = [
     ),
     Mutant(
         "MaskedLeastSquares accepts non-finite observed data",
-        "src/nldr/data_terms.py",
-        "        if not np.all(np.isfinite(W[mask])):",
-        "        if False:",
+        "src/nldr/_validation.py",
+        "    if not np.all(np.isfinite(W[mask_arr])):",
+        "    if False:",
         ("tests/test_reliability.py::test_non_finite_observed_data_is_refused_by_every_data_term",),
     ),
     Mutant(
         "schema: free-form keys under methods.Ours",
         "workflow/schemas/config.schema.yaml",
-        "          Ours:\n            type: object\n            additionalProperties: false",
+        "          Ours:                   # parameters of nldr.impute.KernelRegularizerImputer (gamma: table2.gamma)\n"
+        "            type: object\n            additionalProperties: false",
         "          Ours:\n            type: object",
         ("tests/test_schema.py",),
     ),

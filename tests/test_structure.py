@@ -200,3 +200,19 @@ def test_quick_protocol_plans_nothing_under_the_full_protocols_results(tmp_path)
         p for p in outputs if p.startswith(full_results + "/") and not p.startswith(quick_results + "/")
     ]
     assert not under_full, under_full[:10]
+
+
+def test_every_mutant_still_applies_to_exactly_one_place():
+    """`make mutants` puts each fault where its text stands once; a rename or an edit that moves the
+    text makes the mutant silently inapplicable, so it is checked here, cheaply, on every run."""
+    import mutants
+
+    stale = [
+        (m.name, m.path, (REPO / m.path).read_text().count(m.old) if (REPO / m.path).exists() else "missing")
+        for m in mutants.MUTANTS
+        if not (REPO / m.path).exists() or (REPO / m.path).read_text().count(m.old) != 1
+    ]
+    missing_tests = [
+        (m.name, t) for m in mutants.MUTANTS for t in m.tests if not (REPO / t.split("::")[0]).exists()
+    ]
+    assert not stale and not missing_tests, (stale, missing_tests)
