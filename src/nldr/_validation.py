@@ -42,6 +42,15 @@ def check_count(value, name: str) -> int:
     return int(value)
 
 
+def check_flag(value, name: str) -> bool:
+    """Return ``value`` as a bool; a ValueError naming it unless it is True or False (numpy's bools too).
+
+    A string such as "no" is truthy in Python, so ``bool(value)`` would read it as True."""
+    if not isinstance(value, bool | np.bool_):
+        raise ValueError(f"{name} must be True or False; got {value!r}")
+    return bool(value)
+
+
 def check_symmetric_kernel(K, name: str = "K", *, rtol: float = 1e-8) -> np.ndarray:
     """Return a square, finite, symmetric float matrix (symmetrised exactly) or raise a ValueError."""
     K = as_float_matrix(K, name)

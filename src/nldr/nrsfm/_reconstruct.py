@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validation import check_positive
+from .._validation import check_flag, check_positive
 from ..data_terms import Huber
 from ..kernels import d_max_width, d_med_width
 from ..regularizer import minimize_regularized
@@ -253,6 +253,8 @@ def reconstruct(
             raise ValueError("the robust TNH (loss='huber') needs known cameras: pass cameras=R")
         tau = check_positive(tau if tau is not None else -1.0, "tau (required with estimated cameras)")
         search = options.pop("camera_search", False)
+        if not isinstance(search, Mapping):
+            search = check_flag(search, "camera_search (or a mapping of its options)")
         R0 = options.pop("initial_cameras", None)
         unknown = sorted(set(options) - {"max_outer", "tol", "window"})
         if unknown:
@@ -283,7 +285,7 @@ def reconstruct(
             **solver_arguments(options),
         )  # fmt: skip
         return _result(res, W, vis, R, tau=tau, gamma=gamma, start=start, **common)
-    multistart = bool(options.pop("multistart", True))
+    multistart = check_flag(options.pop("multistart", True), "multistart")
     label = width if isinstance(width, str) else "gamma"
     gammas = {label: gamma}
     if multistart:  # the paper's width rules are the other starts' source

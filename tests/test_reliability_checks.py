@@ -1,0 +1,46 @@
+"""Checks at the edge and their messages: what a user gets for an input the methods cannot take (a
+string for a boolean, tracks not centred, an all-NaN column, a missing tau, entries beyond float64's
+range of squares, ...) is a message that names the argument and the fix, never a wrong answer given
+silently or an error from deep inside. Tiny synthetic data: the whole file runs in seconds."""
+
+
+import numpy as np
+import pytest
+from sklearn.base import clone
+
+from nldr import impute
+from nldr.model_selection import HoldoutSearch
+from nldr.robust_kpca import RobustKernelPCA
+
+
+def _curve(n=24, seed=0, hidden=0.15):
+    """Rows near a 1-d curve in 4 columns, ``hidden`` of the entries NaN (every column observed)."""
+    rng = np.random.default_rng(seed)
+    t = rng.uniform(0.0, 3.0, n)
+    X = np.column_stack([t, np.sin(t), np.cos(t), t**2 / 3]) + 0.01 * rng.standard_normal((n, 4))
+    X[rng.random(X.shape) < hidden] = np.nan
+    return X
+
+
+def _estimators():
+    """One instance of every estimator whose parameters include a boolean (default True or False)."""
+    out = [getattr(impute, name)() for name in impute.__all__ if name != "DecompositionDenoiser"]
+    out.append(HoldoutSearch(impute.SoftImputer(), {"lam": [0.1, 1.0]}))
+    out.append(RobustKernelPCA())
+    return out
+
+
+def _boolean_parameters():
+    for estimator in _estimators():
+        for name, value in estimator.get_params(deep=False).items():
+            if isinstance(value, bool):
+                yield pytest.param(estimator, name, id=f"{type(estimator).__name__}.{name}")
+
+
+@pytest.mark.parametrize("estimator, name", list(_boolean_parameters()))
+def test_boolean_parameters_refuse_strings(estimator, name):
+    X = _curve()
+    model = clone(estimator).set_params(**{name: "no"})
+    data = X if not isinstance(model, RobustKernelPCA) else np.nan_to_num(X)
+    with pytest.raises(ValueError, match=name):
+        model.fit(data)
