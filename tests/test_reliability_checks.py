@@ -44,3 +44,13 @@ def test_boolean_parameters_refuse_strings(estimator, name):
     data = X if not isinstance(model, RobustKernelPCA) else np.nan_to_num(X)
     with pytest.raises(ValueError, match=name):
         model.fit(data)
+
+
+def test_holdout_search_names_an_all_missing_column():
+    from sklearn.impute import SimpleImputer
+
+    X = _curve()
+    X[:, 2] = np.nan
+    search = HoldoutSearch(SimpleImputer(), {"strategy": ["mean", "median"]})
+    with pytest.raises(ValueError, match=r"column\(s\) \[2\] have no observed entry.*drop those columns"):
+        search.fit(X)
