@@ -6,10 +6,12 @@ silently or an error from deep inside. Tiny synthetic data: the whole file runs 
 
 import numpy as np
 import pytest
+from conftest import synthetic_sequence
 from sklearn.base import clone
 
 from nldr import impute
 from nldr.model_selection import HoldoutSearch
+from nldr.nrsfm import reconstruct
 from nldr.robust_kpca import RobustKernelPCA
 
 
@@ -54,3 +56,34 @@ def test_holdout_search_names_an_all_missing_column():
     search = HoldoutSearch(SimpleImputer(), {"strategy": ["mean", "median"]})
     with pytest.raises(ValueError, match=r"column\(s\) \[2\] have no observed entry.*drop those columns"):
         search.fit(X)
+
+
+def test_reconstruct_says_tau_is_required_with_estimated_cameras():
+    _, W, _ = synthetic_sequence()
+    with pytest.raises(ValueError, match="tau is required with estimated cameras") as info:
+        reconstruct(W)
+    assert "-1" not in str(info.value)  # no internal placeholder in the message
+
+
+@pytest.mark.parametrize(
+    "call, named",
+    [
+        (dict(tnh={"tau": 1.0}, bogus=1), "bogus"),  # estimated cameras
+        (dict(tnh={"tau": 1.0}, multistart="no"), "multistart"),
+        (dict(known=True, bogus=1), "bogus"),
+        (dict(known=True, width="widest"), "width"),
+    ],
+)
+def test_reconstruct_refuses_kernel_options_before_solving_its_start(monkeypatch, call, named):
+    import nldr.nrsfm._reconstruct as module
+
+    def solved(*args, **kwargs):
+        raise AssertionError("the TNH start was solved before the options were checked")
+
+    monkeypatch.setattr(module, "tnh_with_camera_refinement", solved)
+    monkeypatch.setattr(module, "trace_norm_heuristic", solved)
+    _, W, R = synthetic_sequence()
+    call = dict(call)
+    cameras = R if call.pop("known", False) else "estimate"
+    with pytest.raises(ValueError, match=named):
+        reconstruct(W, cameras=cameras, prior="kernel", **call)

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._options import solver_options
 from .._validation import check_flag, check_positive
 from ..data_terms import Huber
 from ..kernels import d_max_width, d_med_width
@@ -36,7 +37,7 @@ from ..result import SolverResult
 from ._admm import robust_trace_norm_heuristic, solve_admm
 from ._camera_refinement import tnh_camera_search, tnh_with_camera_refinement
 from ._factorization import initialize_cameras
-from ._joint_kernel import joint_kernel_multistart
+from ._joint_kernel import joint_kernel_multistart, solve_joint_kernel
 from ._reprojection import OrthographicReprojection, check_cameras, check_tracks, reprojection_error
 from ._rotations import CameraFrameVariables
 from ._tnh import TNHResult
@@ -220,7 +221,8 @@ def reconstruct(
     Raises
     ------
     ValueError
-        If an argument is out of range or an option does not belong to the solver that runs.
+        If an argument is out of range or an option does not belong to the solver that runs (the
+        kernel method checks its width and options before its default start is solved).
     """
     W, vis = check_tracks(W2d, visible)
     F = vis.shape[0]
@@ -251,7 +253,12 @@ def reconstruct(
             return _result(res, W, vis, R, tau=res.tau, gamma=np.nan, **common)
         if loss == "huber":
             raise ValueError("the robust TNH (loss='huber') needs known cameras: pass cameras=R")
-        tau = check_positive(tau if tau is not None else -1.0, "tau (required with estimated cameras)")
+        if tau is None:
+            raise ValueError(
+                "tau is required with estimated cameras (prior='tnh'): pass tau > 0 (unit of the tracks "
+                "squared), e.g. chosen from the tracks by nldr.nrsfm.select_tnh_tau"
+            )
+        tau = check_positive(tau, "tau")
         search = options.pop("camera_search", False)
         if not isinstance(search, Mapping):
             search = check_flag(search, "camera_search (or a mapping of its options)")
@@ -268,6 +275,7 @@ def reconstruct(
         return _result(res, W, vis, res.R, tau=tau, gamma=np.nan, wall=time.perf_counter() - begin, **common)
 
     tau = KERNEL_TAU if tau is None else check_positive(tau, "tau")
+    _check_kernel_options(options, known, width)  # before the default start is solved
     if start is None:
         start = reconstruct(W2d, vis, cameras=cameras, prior="tnh", loss=loss, **dict(tnh or {}))
         begin = time.perf_counter()
@@ -319,6 +327,29 @@ def _flat(options: Mapping) -> dict:
     """The options with a nested ``options`` mapping (the solver's own form) merged in."""
     flat = {k: v for k, v in options.items() if k != "options"}
     return {**flat, **dict(options.get("options") or {})}
+
+
+def _check_kernel_options(options: Mapping, known: bool, width) -> None:
+    """Refuse a width or an option the kernel method's solver does not take, as its solve would."""
+    if isinstance(width, str) and width not in WIDTH_RULES:
+        _gamma(width, None)
+    elif not isinstance(width, str):
+        check_positive(width, "width (a gamma)")
+    flat = _flat(options)
+    if known:
+        arguments = solver_arguments({k: v for k, v in flat.items() if k != "depth_scale"})
+        solver_options(arguments.get("method", "exact"), arguments.get("options"))
+        return
+    check_flag(flat.get("multistart", True), "multistart")
+    parameters = inspect.signature(solve_joint_kernel).parameters.items()
+    allowed = {name for name, p in parameters if p.kind is p.KEYWORD_ONLY} - {"gamma", "tau", "delta"}
+    allowed |= {"multistart"}
+    unknown = sorted(set(flat) - allowed)
+    if unknown:
+        raise ValueError(
+            f"unknown options for the kernel method with estimated cameras: {unknown}; "
+            f"allowed: {sorted(allowed)}"
+        )
 
 
 def _gamma(width, X0) -> float:
