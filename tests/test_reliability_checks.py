@@ -87,3 +87,14 @@ def test_reconstruct_refuses_kernel_options_before_solving_its_start(monkeypatch
     cameras = R if call.pop("known", False) else "estimate"
     with pytest.raises(ValueError, match=named):
         reconstruct(W, cameras=cameras, prior="kernel", **call)
+
+
+def test_robust_kernel_pca_imputer_warns_truly_when_no_component_is_left():
+    X = _curve(hidden=0.0)
+    model = impute.RobustKernelPCAImputer(tau=1e6)
+    with pytest.warns(UserWarning, match="removes every component") as record:
+        model.fit(X)
+    messages = [str(w.message) for w in record]
+    assert not any("(n, 0)" in m for m in messages)  # the imputer's transform keeps every column
+    assert any(f"(n, {X.shape[1]}) arrays" in m and "Lower tau" in m for m in messages)
+    assert model.transform(_curve()).shape == X.shape
