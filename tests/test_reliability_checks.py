@@ -98,3 +98,24 @@ def test_robust_kernel_pca_imputer_warns_truly_when_no_component_is_left():
     assert not any("(n, 0)" in m for m in messages)  # the imputer's transform keeps every column
     assert any(f"(n, {X.shape[1]}) arrays" in m and "Lower tau" in m for m in messages)
     assert model.transform(_curve()).shape == X.shape
+
+
+def test_both_nystroem_paths_default_to_the_same_landmark_count(monkeypatch):
+    from nldr._options import solver_options
+    from nldr.impute import _regularizer as module
+    from nldr.impute._defaults import DEFAULT_LANDMARKS
+
+    seen = {}
+
+    def record(term, S0, *, method, options, **kwargs):
+        seen[method] = dict(options)
+        raise StopIteration  # the arguments are what is checked, not the solve
+
+    monkeypatch.setattr(module, "minimize_regularized", record)
+    for method in ("nystroem", "nystroem-warm"):
+        with pytest.raises(StopIteration):
+            impute.KernelRegularizerImputer(method=method, gamma=0.3, tau=0.1).fit(_curve())
+    for method in ("nystroem", "nystroem-warm"):
+        assert solver_options(method, seen[method]).landmarks == DEFAULT_LANDMARKS
+    explicit = impute.KernelRegularizerImputer(method="nystroem", n_landmarks=7)._solver_options()
+    assert explicit["landmarks"] == 7
