@@ -3,6 +3,7 @@ string for a boolean, tracks not centred, an all-NaN column, a missing tau, entr
 range of squares, ...) is a message that names the argument and the fix, never a wrong answer given
 silently or an error from deep inside. Tiny synthetic data: the whole file runs in seconds."""
 
+import warnings
 
 import numpy as np
 import pytest
@@ -119,3 +120,19 @@ def test_both_nystroem_paths_default_to_the_same_landmark_count(monkeypatch):
         assert solver_options(method, seen[method]).landmarks == DEFAULT_LANDMARKS
     explicit = impute.KernelRegularizerImputer(method="nystroem", n_landmarks=7)._solver_options()
     assert explicit["landmarks"] == 7
+
+
+def test_reconstruct_warns_about_tracks_off_centre_but_not_about_chance_offsets():
+    from nldr.nrsfm import random_visibility_mask
+
+    _, W, R = synthetic_sequence(n_points=16)
+    F, P = W.shape[0], W.shape[1] // 2
+    W3 = W.reshape(F, 2, P)
+    W = (W3 - W3.mean(axis=2, keepdims=True)).reshape(F, 2 * P)  # centred per frame on all points
+    visible = random_visibility_mask(F, P, 0.5, 0)  # the observed centroids stray from 0 by chance
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        reconstruct(W, visible, cameras=R)
+        reconstruct(W, None, cameras=R)
+    with pytest.warns(UserWarning, match=r"not centred: in frame\(s\) \[0, 1, .*Subtract each frame's"):
+        reconstruct(W + 5.0, visible, cameras=R)

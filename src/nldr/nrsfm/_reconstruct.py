@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import inspect
 import time
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -218,6 +219,13 @@ def reconstruct(
     -------
     Reconstruction
 
+    Warns
+    -----
+    UserWarning
+        If, in some frame, the observed points' centroid lies farther from the origin than their RMS
+        spread (plus what a random subset of centred points strays by chance): the cameras have no
+        translation, so tracks off centre give wrong shapes.
+
     Raises
     ------
     ValueError
@@ -226,6 +234,8 @@ def reconstruct(
     """
     W, vis = check_tracks(W2d, visible)
     F = vis.shape[0]
+    if prior != "kernel" or start is not None:  # the kernel method's default start checks them
+        _warn_if_not_centred(W, vis)
     known = not isinstance(cameras, str)
     if not known and cameras != "estimate":
         raise ValueError(f"cameras must be 'estimate' or an array (F, 2, 3); got {cameras!r}")
@@ -309,6 +319,44 @@ def reconstruct(
     main = out.pop(label)
     main.other_widths = out
     return main
+
+
+#: How many standard errors of a random subset's centroid the observed centroid may stray beyond the
+#: observed points' RMS spread before the tracks are called off centre.
+_CENTRE_STANDARD_ERRORS = 3.0
+
+
+def _warn_if_not_centred(W: np.ndarray, vis: np.ndarray) -> None:
+    """Warn when, in some frame, the observed points' centroid lies far from the origin.
+
+    The tracks should be centred per frame on all P points; with m < P points observed, the observed
+    centroid strays from 0 by chance. Maintenance note: for m of P centred points drawn at random,
+    E ||centroid||^2 = r^2 (P - m) / (m (P - 1)), r^2 the points' mean squared distance from their
+    centroid (the finite-population variance of a sample mean). A frame is off centre when its
+    observed centroid lies farther from the origin than r (1 + k se), se = sqrt((P - m) / (m (P - 1)))
+    and k = :data:`_CENTRE_STANDARD_ERRORS`, with r estimated by the observed points: complete
+    frames need a centroid within their RMS spread, frames with missing points more, as chance
+    allows. W (F, 2P) with zeros where unobserved, vis (F, P).
+    """
+    F, P = vis.shape
+    m = vis.sum(axis=1)
+    points = W.reshape(F, 2, P)
+    centroid = points.sum(axis=2) / m[:, None]  # unobserved entries are zero
+    spread = np.where(vis[:, None, :], points - centroid[:, :, None], 0.0)
+    rms = np.sqrt(np.einsum("fcp,fcp->f", spread, spread) / m)
+    se = np.sqrt((P - m) / (m * max(P - 1, 1)))
+    distance = np.linalg.norm(centroid, axis=1)
+    off = np.flatnonzero(distance > rms * (1.0 + _CENTRE_STANDARD_ERRORS * se))
+    if off.size:
+        warnings.warn(
+            f"W2d looks not centred: in frame(s) {off[:10].tolist()}{' ...' if off.size > 10 else ''} "
+            "the observed points' centroid lies farther from the origin than their spread allows "
+            "(orthographic cameras have no translation, so the shapes would be wrong). Subtract each "
+            "frame's centroid from its x and y rows first (nldr.nrsfm.center_per_frame does this for "
+            "shapes as rows)",
+            UserWarning,
+            stacklevel=3,
+        )
 
 
 #: :func:`~nldr.regularizer.minimize_regularized`'s own arguments; every other option goes in its ``options``.
