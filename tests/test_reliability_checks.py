@@ -136,3 +136,22 @@ def test_reconstruct_warns_about_tracks_off_centre_but_not_about_chance_offsets(
         reconstruct(W, None, cameras=R)
     with pytest.warns(UserWarning, match=r"not centred: in frame\(s\) \[0, 1, .*Subtract each frame's"):
         reconstruct(W + 5.0, visible, cameras=R)
+
+
+@pytest.mark.parametrize("factor", [1e200, 1e-200])
+@pytest.mark.parametrize("name", [n for n in impute.__all__ if n != "DecompositionDenoiser"])
+def test_entries_whose_squares_float64_cannot_hold_are_refused_by_every_imputer(name, factor):
+    with pytest.raises(ValueError, match=r"(overflow|underflow) float64.*Rescale the columns of X"):
+        getattr(impute, name)().fit(_curve() * factor)
+
+
+def test_ordinary_units_pass_the_range_check_unchanged():
+    from nldr._validation import check_squares_representable
+
+    X = _curve()
+    mask = ~np.isnan(X)
+    for factor in (1e-6, 1e-3, 1.0, 1e3, 1e6):
+        check_squares_representable(np.where(mask, X * factor, 0.0), mask, "X")
+    X[:, 1] *= 1e-6  # one column in other units
+    expected = impute.NearestNeighbourImputer().fit_transform(X)
+    np.testing.assert_array_equal(impute.NearestNeighbourImputer().fit_transform(X * 1e6), expected * 1e6)

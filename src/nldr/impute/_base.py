@@ -1,8 +1,10 @@
 """The base class of every imputer in :mod:`nldr.impute`: NaN marks a missing entry.
 
 One validation path (scikit-learn's ``validate_data`` with NaN allowed, then the library's one mask
-check, :func:`nldr._validation.check_masked_matrix`), one memory of the rows seen in ``fit``, and the
-scikit-learn plumbing (feature names, ``set_output``, tags). A subclass implements two methods:
+check, :func:`nldr._validation.check_masked_matrix`, and the refusal of entries whose squares float64
+cannot hold, :func:`nldr._validation.check_squares_representable`), one memory of the rows seen in
+``fit``, and the scikit-learn plumbing (feature names, ``set_output``, tags). A subclass implements
+two methods:
 
 - ``_solve(W, mask)``: the method on the partially observed training matrix W (zero where missing,
   mask True where observed; every column observed when ``_require_observed_columns``). It stores
@@ -37,7 +39,7 @@ from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._threads import blas_threads_for
-from .._validation import check_masked_matrix
+from .._validation import check_masked_matrix, check_squares_representable
 
 __all__ = ["MaskedImputerBase"]
 
@@ -100,6 +102,7 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
             require_observed_columns=reset and self._require_observed_columns,
             name="X",
         )
+        check_squares_representable(W, mask, "X")
         return W, mask
 
     def _fit(self, X):
