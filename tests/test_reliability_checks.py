@@ -155,3 +155,15 @@ def test_ordinary_units_pass_the_range_check_unchanged():
     X[:, 1] *= 1e-6  # one column in other units
     expected = impute.NearestNeighbourImputer().fit_transform(X)
     np.testing.assert_array_equal(impute.NearestNeighbourImputer().fit_transform(X * 1e6), expected * 1e6)
+
+
+@pytest.mark.parametrize("name", [n for n in impute.__all__ if n != "DecompositionDenoiser"])
+def test_float32_input_comes_back_float64_as_documented(name):
+    from protocol import REPO
+
+    estimator = getattr(impute, name)
+    X = _curve(hidden=0.0 if name == "RobustKernelPCAImputer" else 0.15).astype(np.float32)
+    assert estimator().fit_transform(X).dtype == np.float64
+    assert "float64" in estimator.transform.__doc__ and "float64" in estimator.fit_transform.__doc__
+    guide = (REPO / "docs/user_guide.md").read_text()
+    assert "float32" in guide and "returns float64" in guide

@@ -59,8 +59,9 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
     -------------------------
     n_features_in_ : int
     feature_names_in_ : array of str, when X has string column names
-    completed_ : array, shape (n_samples, n_features)
-        The method's estimate of the training matrix (what ``fit_transform`` returns).
+    completed_ : float64 array, shape (n_samples, n_features)
+        The method's estimate of the training matrix (what ``fit_transform`` returns), float64
+        whatever X's dtype: the solvers run in float64.
     result_ : SolverResult or None
         The solver's result object, for the methods that have one.
     n_iter_ : int
@@ -127,7 +128,7 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
 
     @_fit_context(prefer_skip_nested_validation=True)
     def fit_transform(self, X, y=None):
-        """Fit to X and return the method's estimate of X, shape (n_samples, n_features)."""
+        """Fit to X and return the method's estimate of X, a float64 array (n_samples, n_features)."""
         return self._fit(X).copy()
 
     def transform(self, X):
@@ -136,7 +137,8 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
 
         Returns
         -------
-        X_hat : array, shape (m, n_features)
+        X_hat : float64 array, shape (m, n_features)
+            float64 whatever X's dtype (the solvers run in float64).
         """
         check_is_fitted(self, "completed_")
         W, mask = self._validated(X, reset=False)

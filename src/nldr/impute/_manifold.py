@@ -221,12 +221,13 @@ class RobustKernelPCAImputer(MaskedImputerBase):
     @_fit_context(prefer_skip_nested_validation=True)
     def fit_transform(self, X, y=None):
         """``fit(X).transform(X)``: X (n, n_features) completed against the manifold learnt from
-        its complete rows."""
+        its complete rows, a float64 array whatever X's dtype (the solvers run in float64)."""
         return self.fit(X).transform(X)
 
     def transform(self, X):
         """Complete (with finite ``rho``, denoise) the rows of X, shape (m, n_features), against the
-        learnt manifold. Returns X_hat, shape (m, n_features)."""
+        learnt manifold. Returns X_hat, a float64 array (m, n_features) whatever X's dtype (the
+        solvers run in float64)."""
         check_is_fitted(self, "model_")
         self._validate_params()  # transform's knobs may have been set since fit
         W, mask = self._validated(X, reset=False)
