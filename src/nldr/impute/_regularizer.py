@@ -44,7 +44,6 @@ from ._new_rows import NoComponentsError, regularizer_subspace, row_folds, searc
 __all__ = ["KernelRegularizerImputer"]
 
 
-
 class KernelRegularizerImputer(MaskedImputerBase):
     """Matrix completion with the non-linear dimensionality regularizer (Garg, Eriksson, Reid 2016).
 
