@@ -25,6 +25,14 @@ def _curve(n=24, seed=0, hidden=0.15):
     return X
 
 
+def _centred_tracks(n_points=9):
+    """A small synthetic sequence's tracks (F, 2P), centred per frame on all points, and its cameras."""
+    _, W, R = synthetic_sequence(n_points=n_points)
+    F, P = W.shape[0], W.shape[1] // 2
+    W3 = W.reshape(F, 2, P)
+    return (W3 - W3.mean(axis=2, keepdims=True)).reshape(F, 2 * P), R
+
+
 def _estimators():
     """One instance of every estimator whose parameters include a boolean (default True or False)."""
     out = [getattr(impute, name)() for name in impute.__all__ if name != "DecompositionDenoiser"]
@@ -60,7 +68,7 @@ def test_holdout_search_names_an_all_missing_column():
 
 
 def test_reconstruct_says_tau_is_required_with_estimated_cameras():
-    _, W, _ = synthetic_sequence()
+    W, _ = _centred_tracks()
     with pytest.raises(ValueError, match="tau is required with estimated cameras") as info:
         reconstruct(W)
     assert "-1" not in str(info.value)  # no internal placeholder in the message
@@ -83,7 +91,7 @@ def test_reconstruct_refuses_kernel_options_before_solving_its_start(monkeypatch
 
     monkeypatch.setattr(module, "tnh_with_camera_refinement", solved)
     monkeypatch.setattr(module, "trace_norm_heuristic", solved)
-    _, W, R = synthetic_sequence()
+    W, R = _centred_tracks()
     call = dict(call)
     cameras = R if call.pop("known", False) else "estimate"
     with pytest.raises(ValueError, match=named):
@@ -125,10 +133,8 @@ def test_both_nystroem_paths_default_to_the_same_landmark_count(monkeypatch):
 def test_reconstruct_warns_about_tracks_off_centre_but_not_about_chance_offsets():
     from nldr.nrsfm import random_visibility_mask
 
-    _, W, R = synthetic_sequence(n_points=16)
+    W, R = _centred_tracks(n_points=16)
     F, P = W.shape[0], W.shape[1] // 2
-    W3 = W.reshape(F, 2, P)
-    W = (W3 - W3.mean(axis=2, keepdims=True)).reshape(F, 2 * P)  # centred per frame on all points
     visible = random_visibility_mask(F, P, 0.5, 0)  # the observed centroids stray from 0 by chance
     with warnings.catch_warnings():
         warnings.simplefilter("error")
