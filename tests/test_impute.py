@@ -230,7 +230,6 @@ def test_bad_input_is_refused_with_a_clear_message(X, match):
         ({"options": [1]}, "options"),
         ({"method": "exact", "options": {"exact_stages": 1}}, "'exact' takes no option 'exact_stages'"),
         ({"method": "exact", "n_landmarks": 10}, "n_landmarks"),
-        ({"method": "nystroem"}, "needs n_landmarks"),
         ({"options": {"landmarks": 10, "max_inner": 5}}, "pass n_landmarks=, max_iter="),
         ({"rho_growth": 1.0}, "rho_growth"),
         ({"rho0": 10.0, "rho_max": 1.0}, "rho_max"),

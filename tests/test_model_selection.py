@@ -213,7 +213,7 @@ def test_a_warm_regularizer_imputer_refit_on_another_shape_or_standardised_start
     [
         {"options": {"stage_tol": 1e-7, "gtoll": 1e-4}},
         {"method": "exact", "n_landmarks": 50},
-        {"method": "nystroem", "tol": 1e-7},  # n_landmarks required
+        {"method": "nystroem", "options": {"exact_stages": 2}},  # an option of "nystroem-warm" only
         {"method": "auto", "options": {"max_iner": 10}},
         {"options": {"tol": 1e-7}},  # a parameter, not an option
         {"rho0": 10.0, "rho_max": 1.0},

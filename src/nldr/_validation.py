@@ -42,6 +42,15 @@ def check_count(value, name: str) -> int:
     return int(value)
 
 
+def check_flag(value, name: str) -> bool:
+    """Return ``value`` as a bool; a ValueError naming it unless it is True or False (numpy's bools too).
+
+    A string such as "no" is truthy in Python, so ``bool(value)`` would read it as True."""
+    if not isinstance(value, bool | np.bool_):
+        raise ValueError(f"{name} must be True or False; got {value!r}")
+    return bool(value)
+
+
 def check_symmetric_kernel(K, name: str = "K", *, rtol: float = 1e-8) -> np.ndarray:
     """Return a square, finite, symmetric float matrix (symmetrised exactly) or raise a ValueError."""
     K = as_float_matrix(K, name)
@@ -71,6 +80,35 @@ def check_magnitude(values: np.ndarray, name: str) -> None:
         raise ValueError(
             f"{name} has entries up to {largest:.3g} in magnitude; squared errors overflow float64 "
             f"beyond about {limit:.3g} for {values.size} entries. Rescale {name} (e.g. standardise it)"
+        )
+
+
+def check_squares_representable(W: np.ndarray, mask: np.ndarray, name: str) -> None:
+    """Refuse observed entries whose squares float64 cannot hold: too large at all, or too small in a column.
+
+    The methods square differences of entries (distances between rows, residuals, variances). Beyond
+    the bound of :func:`check_magnitude` sums of squares overflow; in a column whose largest observed
+    magnitude is below sqrt(smallest normal float64), every square underflows (to zero or a
+    subnormal without precision), so the column's spread and its share of every distance are lost.
+    Data in any ordinary units lies far inside both bounds. W (n, d) is zero where ``mask`` is False.
+    """
+    observed = np.abs(W[mask])
+    largest = float(observed.max(initial=0.0))
+    limit = float(np.sqrt(np.finfo(np.float64).max / (16.0 * max(observed.size, 1))))
+    if largest > limit:
+        raise ValueError(
+            f"{name} has observed entries up to {largest:.3g} in magnitude: their squares overflow float64 "
+            f"beyond about {limit:.3g} for {observed.size} entries. Rescale the columns of {name} "
+            "(e.g. divide each by a typical magnitude of its entries)"
+        )
+    column_largest = np.max(np.where(mask, np.abs(W), 0.0), axis=0)
+    floor = float(np.sqrt(np.finfo(np.float64).tiny))
+    tiny = np.flatnonzero((column_largest > 0.0) & (column_largest < floor))
+    if tiny.size:
+        raise ValueError(
+            f"column(s) {tiny[:10].tolist()}{' ...' if tiny.size > 10 else ''} of {name} have observed "
+            f"entries below {floor:.3g} in magnitude: their squares underflow float64. Rescale the "
+            f"columns of {name} (e.g. divide each by a typical magnitude of its entries)"
         )
 
 

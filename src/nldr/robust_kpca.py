@@ -24,6 +24,7 @@ from ._spectral import check_eigensolver, cubic_threshold, leading_eigenpairs, s
 from ._threads import blas_threads_for
 from ._validation import (
     check_count,
+    check_flag,
     check_magnitude,
     check_masked_matrix,
     check_positive,
@@ -197,10 +198,11 @@ class RobustKernelPCA(TransformerMixin, BaseEstimator):
         tau = check_positive(self.tau, "tau")
         rho = check_positive(self.rho, "rho")
         eigensolver = check_eigensolver(self.eigensolver)
+        center = check_flag(self.center, "center")
         with blas_threads_for(X.shape[0]):  # one BLAS thread on small problems (nldr._threads)
             K = self._kernel(X)
             self.kernel_column_means_ = K.mean(axis=0)
-            Kc = center_kernel(K) if self.center else K
+            Kc = center_kernel(K) if center else K
             lam, U, l = spectrum(Kc, tau, rho, eigensolver)
         k = int(np.count_nonzero(l))
         if k == 0:

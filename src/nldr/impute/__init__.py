@@ -16,6 +16,9 @@ result object as ``result_`` where there is one.
 - Peers not in the paper: :class:`SoftImputer` (nuclear-norm completion) and
   :class:`RobustPCAImputer` (linear Robust PCA, for gross errors).
 
+Every estimator converts X to float64 and returns float64 arrays, a float32 X included: the solvers
+run in float64 (docs/user_guide.md).
+
 The mean baseline is scikit-learn's ``SimpleImputer``; ``KNNImputer`` and ``IterativeImputer`` are
 scikit-learn's, used as they are.
 """

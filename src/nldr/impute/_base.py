@@ -1,8 +1,10 @@
 """The base class of every imputer in :mod:`nldr.impute`: NaN marks a missing entry.
 
 One validation path (scikit-learn's ``validate_data`` with NaN allowed, then the library's one mask
-check, :func:`nldr._validation.check_masked_matrix`), one memory of the rows seen in ``fit``, and the
-scikit-learn plumbing (feature names, ``set_output``, tags). A subclass implements two methods:
+check, :func:`nldr._validation.check_masked_matrix`, and the refusal of entries whose squares float64
+cannot hold, :func:`nldr._validation.check_squares_representable`), one memory of the rows seen in
+``fit``, and the scikit-learn plumbing (feature names, ``set_output``, tags). A subclass implements
+two methods:
 
 - ``_solve(W, mask)``: the method on the partially observed training matrix W (zero where missing,
   mask True where observed; every column observed when ``_require_observed_columns``). It stores
@@ -37,7 +39,7 @@ from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._threads import blas_threads_for
-from .._validation import check_masked_matrix
+from .._validation import check_masked_matrix, check_squares_representable
 
 __all__ = ["MaskedImputerBase"]
 
@@ -57,8 +59,9 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
     -------------------------
     n_features_in_ : int
     feature_names_in_ : array of str, when X has string column names
-    completed_ : array, shape (n_samples, n_features)
-        The method's estimate of the training matrix (what ``fit_transform`` returns).
+    completed_ : float64 array, shape (n_samples, n_features)
+        The method's estimate of the training matrix (what ``fit_transform`` returns), float64
+        whatever X's dtype: the solvers run in float64.
     result_ : SolverResult or None
         The solver's result object, for the methods that have one.
     n_iter_ : int
@@ -100,6 +103,7 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
             require_observed_columns=reset and self._require_observed_columns,
             name="X",
         )
+        check_squares_representable(W, mask, "X")
         return W, mask
 
     def _fit(self, X):
@@ -124,7 +128,7 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
 
     @_fit_context(prefer_skip_nested_validation=True)
     def fit_transform(self, X, y=None):
-        """Fit to X and return the method's estimate of X, shape (n_samples, n_features)."""
+        """Fit to X and return the method's estimate of X, a float64 array (n_samples, n_features)."""
         return self._fit(X).copy()
 
     def transform(self, X):
@@ -133,7 +137,8 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
 
         Returns
         -------
-        X_hat : array, shape (m, n_features)
+        X_hat : float64 array, shape (m, n_features)
+            float64 whatever X's dtype (the solvers run in float64).
         """
         check_is_fitted(self, "completed_")
         W, mask = self._validated(X, reset=False)

@@ -7,7 +7,7 @@ import dataclasses
 
 import numpy as np
 
-from .._options import ExactOptions, NystroemOptions
+from .._options import ExactOptions, NystroemOptions, NystroemWarmOptions
 from ..kernels import squared_distances
 from ..regularizer import LONG_SOLVE_ROWS
 
@@ -20,6 +20,7 @@ __all__ = [
     "AUTO_EXACT_MAX_ROWS",
     "AUTO_NYSTROEM_MIN_ROWS",
     "AUTO_LANDMARKS",
+    "DEFAULT_LANDMARKS",
     "EXACT_OPTIONS",
     "MEDIAN_RULE_MULTIPLE",
     "TUNE_GAMMA_MULTIPLES",
@@ -51,6 +52,9 @@ AUTO_EXACT_MAX_ROWS = 150
 #: from here (where an exact solve warns) "auto" runs every stage on AUTO_LANDMARKS landmarks, no
 #: exact last stage (its eigensolver grows as n^3; measured: docs/PERFORMANCE.md#auto-landmarks)
 AUTO_NYSTROEM_MIN_ROWS, AUTO_LANDMARKS = LONG_SOLVE_ROWS, 200
+#: ``n_landmarks=None`` with ``method="nystroem"`` or ``"nystroem-warm"``: the warm start's default
+#: landmark count, one default for both Nystroem paths
+DEFAULT_LANDMARKS = NystroemWarmOptions.landmarks
 #: options "exact" takes (method="auto" drops the others below AUTO_EXACT_MAX_ROWS rows)
 EXACT_OPTIONS = frozenset(f.name for f in dataclasses.fields(ExactOptions))
 #: the default width is this multiple of 1 / (median squared distance between rows), standardised units

@@ -13,6 +13,7 @@ row depends on the fitted model and that row only, so ``fit_transform(X)`` is ``
 
 from __future__ import annotations
 
+import warnings
 from numbers import Integral, Real
 
 import numpy as np
@@ -22,7 +23,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._preimage import LOSSES, average_solutions
 from .._spectral import EIGENSOLVERS
-from ..robust_kpca import RobustKernelPCA
+from ..robust_kpca import RobustKernelPCA, rank_penalty_threshold
 from ._base import MaskedImputerBase
 
 __all__ = ["RobustKernelPCAImputer", "DecompositionDenoiser"]
@@ -196,9 +197,21 @@ class RobustKernelPCAImputer(MaskedImputerBase):
             and self._fitted_key == self._manifold_key()
             and np.array_equal(previous.X_fit_, rows)
         ):
-            self.model_ = RobustKernelPCA(
-                gamma=self.gamma, tau=self.tau, center=bool(self.center), eigensolver=self.eigensolver
-            ).fit(rows)
+            with warnings.catch_warnings():  # its warning speaks of its own transform's (n, 0) arrays
+                warnings.filterwarnings("ignore", message=".*removes every component", category=UserWarning)
+                self.model_ = RobustKernelPCA(
+                    gamma=self.gamma, tau=self.tau, center=bool(self.center), eigensolver=self.eigensolver
+                ).fit(rows)
+            if self.model_.n_components_ == 0:
+                warnings.warn(
+                    f"tau = {self.tau:g} removes every component of the manifold (every eigenvalue of "
+                    f"the complete rows' kernel is below the threshold "
+                    f"{rank_penalty_threshold(self.tau, 1.0):.3g}): transform still returns "
+                    f"(n, {rows.shape[1]}) arrays, but no principal subspace guides their missing "
+                    "entries. Lower tau",
+                    UserWarning,
+                    stacklevel=2,
+                )
             self._fitted_key = self._manifold_key()
             self._solutions = None
         self.gamma_ = float(self.model_.gamma_)
@@ -208,12 +221,13 @@ class RobustKernelPCAImputer(MaskedImputerBase):
     @_fit_context(prefer_skip_nested_validation=True)
     def fit_transform(self, X, y=None):
         """``fit(X).transform(X)``: X (n, n_features) completed against the manifold learnt from
-        its complete rows."""
+        its complete rows, a float64 array whatever X's dtype (the solvers run in float64)."""
         return self.fit(X).transform(X)
 
     def transform(self, X):
         """Complete (with finite ``rho``, denoise) the rows of X, shape (m, n_features), against the
-        learnt manifold. Returns X_hat, shape (m, n_features)."""
+        learnt manifold. Returns X_hat, a float64 array (m, n_features) whatever X's dtype (the
+        solvers run in float64)."""
         check_is_fitted(self, "model_")
         self._validate_params()  # transform's knobs may have been set since fit
         W, mask = self._validated(X, reset=False)

@@ -19,6 +19,7 @@ from ._defaults import (
     AUTO_EXACT_MAX_ROWS,
     AUTO_LANDMARKS,
     AUTO_NYSTROEM_MIN_ROWS,
+    DEFAULT_LANDMARKS,
     EXACT_OPTIONS,
     FLAT_OPTIONS,
     LOSSES,
@@ -41,7 +42,6 @@ from ._defaults import (
 from ._new_rows import NoComponentsError, regularizer_subspace, row_folds, search_transform_knobs
 
 __all__ = ["KernelRegularizerImputer"]
-
 
 
 class KernelRegularizerImputer(MaskedImputerBase):
@@ -80,19 +80,19 @@ class KernelRegularizerImputer(MaskedImputerBase):
     method : {"auto", "exact", "nystroem", "nystroem-warm"}, default "auto"
         :func:`~nldr.regularizer.minimize_regularized`'s solver path. "exact": every penalty stage
         with the exact kernel. "nystroem-warm": the stages before the last on a Nystroem kernel of
-        100 landmark rows, then the last stage exactly from there (an exact stopping test, possibly
-        another local minimum: docs/PERFORMANCE.md). "nystroem": every stage on the Nystroem kernel
-        (not the exact minimiser). "auto": "exact" up to :data:`AUTO_EXACT_MAX_ROWS` rows,
-        "nystroem-warm" above, and "nystroem" on :data:`AUTO_LANDMARKS` landmarks from
-        :data:`AUTO_NYSTROEM_MIN_ROWS` rows (an approximate minimiser whose cost grows linearly in
-        the rows).
+        ``n_landmarks`` landmark rows, then the last stage exactly from there (an exact stopping
+        test, possibly another local minimum: docs/PERFORMANCE.md). "nystroem": every stage on the
+        Nystroem kernel of ``n_landmarks`` rows (not the exact minimiser). "auto": "exact" up to
+        :data:`AUTO_EXACT_MAX_ROWS` rows, "nystroem-warm" above, and "nystroem" on
+        :data:`AUTO_LANDMARKS` landmarks from :data:`AUTO_NYSTROEM_MIN_ROWS` rows (an approximate
+        minimiser whose cost grows linearly in the rows).
     n_landmarks : int >= 1 or None, default None
         Landmark rows of the Nystroem kernel (``options["landmarks"]`` of
-        :func:`~nldr.regularizer.minimize_regularized`), for the Nystroem paths only. None: 100 for
-        "nystroem-warm" (and "auto" between :data:`AUTO_EXACT_MAX_ROWS` and
-        :data:`AUTO_NYSTROEM_MIN_ROWS` rows), :data:`AUTO_LANDMARKS` for "auto" from
-        :data:`AUTO_NYSTROEM_MIN_ROWS` rows; ``method="nystroem"`` needs it, and ``method="exact"``
-        refuses it. "auto" ignores it at or below :data:`AUTO_EXACT_MAX_ROWS` rows.
+        :func:`~nldr.regularizer.minimize_regularized`), for the Nystroem paths only. None:
+        :data:`DEFAULT_LANDMARKS` (100) for "nystroem" and "nystroem-warm" (and "auto" between
+        :data:`AUTO_EXACT_MAX_ROWS` and :data:`AUTO_NYSTROEM_MIN_ROWS` rows), :data:`AUTO_LANDMARKS`
+        for "auto" from :data:`AUTO_NYSTROEM_MIN_ROWS` rows; ``method="exact"`` refuses it. "auto"
+        ignores it at or below :data:`AUTO_EXACT_MAX_ROWS` rows.
     rho0 : float > 0, default 1.0
         First penalty weight of the schedule (kernel units against the data term's units; the
         paper's 1).
@@ -300,8 +300,6 @@ class KernelRegularizerImputer(MaskedImputerBase):
         super()._validate_params()
         if self.rho_max < self.rho0:
             raise ValueError(f"rho_max ({self.rho_max!r}) must be at least rho0 ({self.rho0!r})")
-        if self.method == "nystroem" and self.n_landmarks is None:
-            raise ValueError("method='nystroem' needs n_landmarks (the Nystroem kernel's landmark rows)")
         if self.method == "exact" and self.n_landmarks is not None:
             raise ValueError("n_landmarks applies to the Nystroem paths; with method='exact' set it to None")
         flat = sorted(set(self.options or {}) & {*FLAT_OPTIONS, *FLAT_OPTIONS.values()})
@@ -320,6 +318,8 @@ class KernelRegularizerImputer(MaskedImputerBase):
         options.update(max_inner=self.max_iter, tol=self.tol, gtol=self.gtol)
         if self.n_landmarks is not None:
             options["landmarks"] = self.n_landmarks
+        elif self.method == "nystroem":  # "nystroem-warm" has the same default in its options record
+            options["landmarks"] = DEFAULT_LANDMARKS
         return options
 
     def _standardisation(self, W, mask):

@@ -58,7 +58,7 @@ def holdout_folds(
     Parameters
     ----------
     mask : bool array, shape (n, d)
-        True where observed.
+        True where observed; every column needs an observed entry.
     n_folds : int >= 2
         Number of folds.
     random_state : int or numpy Generator
@@ -80,6 +80,12 @@ def holdout_folds(
         raise ValueError(f"n_folds must be >= 2 (one fold would hide every observed entry); got {n_folds}")
     if holdout is not None and not (isinstance(holdout, (int, float)) and 0.0 < holdout < 1.0):
         raise ValueError(f"holdout must be None or a share in (0, 1); got {holdout!r}")
+    empty = np.flatnonzero(~mask.any(axis=0))
+    if empty.size:
+        raise ValueError(
+            f"column(s) {empty.tolist()} have no observed entry (all missing): no fold can keep one "
+            "for training or hide one to score; drop those columns before the search"
+        )
     observed = np.flatnonzero(mask.ravel())
     if observed.size < n_folds:
         raise ValueError(f"mask has {observed.size} observed entries, fewer than n_folds = {n_folds}")

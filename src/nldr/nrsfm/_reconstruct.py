@@ -23,12 +23,14 @@ from __future__ import annotations
 
 import inspect
 import time
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validation import check_positive
+from .._options import solver_options
+from .._validation import check_flag, check_positive
 from ..data_terms import Huber
 from ..kernels import d_max_width, d_med_width
 from ..regularizer import minimize_regularized
@@ -36,7 +38,7 @@ from ..result import SolverResult
 from ._admm import robust_trace_norm_heuristic, solve_admm
 from ._camera_refinement import tnh_camera_search, tnh_with_camera_refinement
 from ._factorization import initialize_cameras
-from ._joint_kernel import joint_kernel_multistart
+from ._joint_kernel import joint_kernel_multistart, solve_joint_kernel
 from ._reprojection import OrthographicReprojection, check_cameras, check_tracks, reprojection_error
 from ._rotations import CameraFrameVariables
 from ._tnh import TNHResult
@@ -217,13 +219,23 @@ def reconstruct(
     -------
     Reconstruction
 
+    Warns
+    -----
+    UserWarning
+        If, in some frame, the observed points' centroid lies farther from the origin than their RMS
+        spread (plus what a random subset of centred points strays by chance): the cameras have no
+        translation, so tracks off centre give wrong shapes.
+
     Raises
     ------
     ValueError
-        If an argument is out of range or an option does not belong to the solver that runs.
+        If an argument is out of range or an option does not belong to the solver that runs (the
+        kernel method checks its width and options before its default start is solved).
     """
     W, vis = check_tracks(W2d, visible)
     F = vis.shape[0]
+    if prior != "kernel" or start is not None:  # the kernel method's default start checks them
+        _warn_if_not_centred(W, vis)
     known = not isinstance(cameras, str)
     if not known and cameras != "estimate":
         raise ValueError(f"cameras must be 'estimate' or an array (F, 2, 3); got {cameras!r}")
@@ -251,8 +263,15 @@ def reconstruct(
             return _result(res, W, vis, R, tau=res.tau, gamma=np.nan, **common)
         if loss == "huber":
             raise ValueError("the robust TNH (loss='huber') needs known cameras: pass cameras=R")
-        tau = check_positive(tau if tau is not None else -1.0, "tau (required with estimated cameras)")
+        if tau is None:
+            raise ValueError(
+                "tau is required with estimated cameras (prior='tnh'): pass tau > 0 (unit of the tracks "
+                "squared), e.g. chosen from the tracks by nldr.nrsfm.select_tnh_tau"
+            )
+        tau = check_positive(tau, "tau")
         search = options.pop("camera_search", False)
+        if not isinstance(search, Mapping):
+            search = check_flag(search, "camera_search (or a mapping of its options)")
         R0 = options.pop("initial_cameras", None)
         unknown = sorted(set(options) - {"max_outer", "tol", "window"})
         if unknown:
@@ -266,6 +285,7 @@ def reconstruct(
         return _result(res, W, vis, res.R, tau=tau, gamma=np.nan, wall=time.perf_counter() - begin, **common)
 
     tau = KERNEL_TAU if tau is None else check_positive(tau, "tau")
+    _check_kernel_options(options, known, width)  # before the default start is solved
     if start is None:
         start = reconstruct(W2d, vis, cameras=cameras, prior="tnh", loss=loss, **dict(tnh or {}))
         begin = time.perf_counter()
@@ -283,7 +303,7 @@ def reconstruct(
             **solver_arguments(options),
         )  # fmt: skip
         return _result(res, W, vis, R, tau=tau, gamma=gamma, start=start, **common)
-    multistart = bool(options.pop("multistart", True))
+    multistart = check_flag(options.pop("multistart", True), "multistart")
     label = width if isinstance(width, str) else "gamma"
     gammas = {label: gamma}
     if multistart:  # the paper's width rules are the other starts' source
@@ -299,6 +319,44 @@ def reconstruct(
     main = out.pop(label)
     main.other_widths = out
     return main
+
+
+#: How many standard errors of a random subset's centroid the observed centroid may stray beyond the
+#: observed points' RMS spread before the tracks are called off centre.
+_CENTRE_STANDARD_ERRORS = 3.0
+
+
+def _warn_if_not_centred(W: np.ndarray, vis: np.ndarray) -> None:
+    """Warn when, in some frame, the observed points' centroid lies far from the origin.
+
+    The tracks should be centred per frame on all P points; with m < P points observed, the observed
+    centroid strays from 0 by chance. Maintenance note: for m of P centred points drawn at random,
+    E ||centroid||^2 = r^2 (P - m) / (m (P - 1)), r^2 the points' mean squared distance from their
+    centroid (the finite-population variance of a sample mean). A frame is off centre when its
+    observed centroid lies farther from the origin than r (1 + k se), se = sqrt((P - m) / (m (P - 1)))
+    and k = :data:`_CENTRE_STANDARD_ERRORS`, with r estimated by the observed points: complete
+    frames need a centroid within their RMS spread, frames with missing points more, as chance
+    allows. W (F, 2P) with zeros where unobserved, vis (F, P).
+    """
+    F, P = vis.shape
+    m = vis.sum(axis=1)
+    points = W.reshape(F, 2, P)
+    centroid = points.sum(axis=2) / m[:, None]  # unobserved entries are zero
+    spread = np.where(vis[:, None, :], points - centroid[:, :, None], 0.0)
+    rms = np.sqrt(np.einsum("fcp,fcp->f", spread, spread) / m)
+    se = np.sqrt((P - m) / (m * max(P - 1, 1)))
+    distance = np.linalg.norm(centroid, axis=1)
+    off = np.flatnonzero(distance > rms * (1.0 + _CENTRE_STANDARD_ERRORS * se))
+    if off.size:
+        warnings.warn(
+            f"W2d looks not centred: in frame(s) {off[:10].tolist()}{' ...' if off.size > 10 else ''} "
+            "the observed points' centroid lies farther from the origin than their spread allows "
+            "(orthographic cameras have no translation, so the shapes would be wrong). Subtract each "
+            "frame's centroid from its x and y rows first (nldr.nrsfm.center_per_frame does this for "
+            "shapes as rows)",
+            UserWarning,
+            stacklevel=3,
+        )
 
 
 #: :func:`~nldr.regularizer.minimize_regularized`'s own arguments; every other option goes in its ``options``.
@@ -317,6 +375,29 @@ def _flat(options: Mapping) -> dict:
     """The options with a nested ``options`` mapping (the solver's own form) merged in."""
     flat = {k: v for k, v in options.items() if k != "options"}
     return {**flat, **dict(options.get("options") or {})}
+
+
+def _check_kernel_options(options: Mapping, known: bool, width) -> None:
+    """Refuse a width or an option the kernel method's solver does not take, as its solve would."""
+    if isinstance(width, str) and width not in WIDTH_RULES:
+        _gamma(width, None)
+    elif not isinstance(width, str):
+        check_positive(width, "width (a gamma)")
+    flat = _flat(options)
+    if known:
+        arguments = solver_arguments({k: v for k, v in flat.items() if k != "depth_scale"})
+        solver_options(arguments.get("method", "exact"), arguments.get("options"))
+        return
+    check_flag(flat.get("multistart", True), "multistart")
+    parameters = inspect.signature(solve_joint_kernel).parameters.items()
+    allowed = {name for name, p in parameters if p.kind is p.KEYWORD_ONLY} - {"gamma", "tau", "delta"}
+    allowed |= {"multistart"}
+    unknown = sorted(set(flat) - allowed)
+    if unknown:
+        raise ValueError(
+            f"unknown options for the kernel method with estimated cameras: {unknown}; "
+            f"allowed: {sorted(allowed)}"
+        )
 
 
 def _gamma(width, X0) -> float:
