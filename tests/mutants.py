@@ -76,7 +76,8 @@ MUTANTS = [
     Mutant(
         "schema: free-form keys under methods.Ours",
         "workflow/schemas/config.schema.yaml",
-        "          Ours:                   # parameters of nldr.impute.KernelRegularizerImputer (gamma: table2.gamma)\n"
+        "          Ours:                   # parameters of nldr.impute.KernelRegularizerImputer"
+        " (gamma: table2.gamma)\n"
         "            type: object\n            additionalProperties: false",
         "          Ours:\n            type: object",
         ("tests/test_schema.py",),
