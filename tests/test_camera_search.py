@@ -49,7 +49,7 @@ def turned(R, frames):
     return R
 
 
-@pytest.mark.parametrize("mode", ["forward", "backward", "local"])
+@pytest.mark.parametrize("mode", ["forward", "backward", "local", "worst"])
 def test_proposals_leave_a_smooth_path_alone(mode):
     R = orbit(10)
     R_new, changed = propose_cameras(R, mode)
@@ -57,14 +57,29 @@ def test_proposals_leave_a_smooth_path_alone(mode):
     np.testing.assert_allclose(R_new, R, atol=1e-12)
 
 
-@pytest.mark.parametrize("mode", ["forward", "backward", "local"])
+@pytest.mark.parametrize("mode", ["forward", "backward", "local", "worst"])
 @pytest.mark.parametrize("frames", [[4], [4, 5]])
 def test_proposals_restore_turned_frames_of_a_constant_velocity_path(mode, frames):
     R = orbit(10)
-    if mode == "local" and len(frames) > 1:
-        frames = frames[:1]  # the midpoint of two neighbours needs both to be right
+    if mode in ("local", "worst") and len(frames) > 1:
+        frames = frames[:1]  # the midpoint of two neighbours needs both to be right; worst moves one
     R_new, changed = propose_cameras(turned(R, frames), mode)
     assert list(changed) == frames
+    np.testing.assert_allclose(R_new, R, atol=1e-12)
+
+
+@pytest.mark.parametrize("frame", [0, 9])
+def test_worst_proposal_restores_an_end_frame_from_the_extrapolation(frame):
+    """An end frame has one neighbour: the prediction is the constant-velocity extrapolation of the
+    two nearest cameras, exact on this path; a frame turned by only 20 degrees (below the sweeps'
+    30-degree test, above worst's 15) is restored."""
+    R = orbit(10)
+    R_turned = R.copy()
+    M = Rotation.from_rotvec([0.0, 0.0, np.radians(20.0)]).as_matrix()
+    R_turned[frame] = R[frame] @ M
+    assert propose_cameras(R_turned, "forward")[1].size == 0 or frame == 0
+    R_new, changed = propose_cameras(R_turned, "worst")
+    assert list(changed) == [frame]
     np.testing.assert_allclose(R_new, R, atol=1e-12)
 
 
