@@ -17,15 +17,8 @@ from conftest import project
 from scipy.spatial.transform import Rotation
 
 from nldr.datasets import load_mocap
-from nldr.nrsfm._camera_refinement import (
-    STARTS,
-    lowest_energy,
-    propose_cameras,
-    tnh_basin_search,
-    tnh_camera_search,
-    tnh_continuation,
-    tnh_with_camera_refinement,
-)
+from nldr.nrsfm._basin_search import STARTS, lowest_energy, tnh_basin_search, tnh_continuation
+from nldr.nrsfm._camera_refinement import propose_cameras, tnh_camera_search, tnh_with_camera_refinement
 from nldr.nrsfm._factorization import initialize_cameras
 from nldr.nrsfm._layout import random_visibility_mask, stack_to_rows
 from nldr.nrsfm._metrics import center_per_frame

@@ -49,7 +49,7 @@ from .._schedule import isolation_safe_rho0, penalty_schedule
 from .._threads import blas_threads_for
 from .._validation import check_count, check_positive
 from ..data_terms import huber_loss
-from ._camera_refinement import lowest_energy
+from ._basin_search import lowest_energy
 from ._reprojection import check_cameras, check_shapes, check_tracks
 from ._rotations import complete_rotations, quaternion_rotation
 
@@ -290,7 +290,7 @@ def joint_kernel_multistart(
     """:func:`solve_joint_kernel` for every width of ``gammas``, each keeping the lowest energy (1) at
     the last rho (:func:`kernel_energy`; no ground truth) among its starts. Energies within
     ``tie_rtol`` (relative) of the lowest count as one minimum and go to the earlier start of the list
-    below (:func:`~nldr.nrsfm._camera_refinement.lowest_energy`), so that the start kept does not
+    below (:func:`~nldr.nrsfm._basin_search.lowest_energy`), so that the start kept does not
     hang on the last bit of the arithmetic.
 
     With ``multistart`` the starts of a width are
