@@ -83,12 +83,12 @@ def test_every_stage_ends_no_higher_than_it_starts():
 
 
 def test_multistart_keeps_the_lowest_paper_energy_of_its_starts():
-    """joint_kernel_multistart's kept energy is the minimum over the starts it documents, each run alone
-    (exact: the same deterministic runs), never above the single full schedule, and its ``nit`` sums
-    the iterations of every start of that width."""
+    """joint_kernel_multistart's kept energy (tie_rtol = 0) is the minimum over the starts it documents,
+    each run alone (exact: the same deterministic runs), never above the single full schedule, and its
+    ``nit`` sums the iterations of every start of that width."""
     W, mask, R0, X0 = scene(seed=5)
     gammas = {"d_max": d_max_width(X0), "d_med": d_med_width(X0)}
-    kw = dict(tau=1e-4, rho0=1e-2, rho_growth=10.0, rho_max=1.0)
+    kw = dict(tau=1e-4, rho0=1e-2, rho_growth=10.0, rho_max=1.0, tie_rtol=0.0)
     out = joint_kernel_multistart(W, mask, R0, X0, gammas, multistart=True, **kw)
     single = joint_kernel_multistart(W, mask, R0, X0, gammas, multistart=False, **kw)
 
@@ -108,3 +108,19 @@ def test_multistart_keeps_the_lowest_paper_energy_of_its_starts():
         assert out[width][1] == min(energy, cross[1])
         assert out[width][1] <= single[width][1]
         assert out[width][0].nit == spent + cross[0].nit
+
+
+def test_multistart_ties_go_to_the_earlier_start():
+    """With a tolerance as wide as the energies' spread, every start ties and the full schedule (the
+    first) is kept; with the default, the kept energy is within tie_rtol of the lowest start's."""
+    W, mask, R0, X0 = scene(seed=5)
+    gammas = {"d_max": d_max_width(X0), "d_med": d_med_width(X0)}
+    kw = dict(tau=1e-4, rho0=1e-2, rho_growth=10.0, rho_max=1.0)
+    lowest = joint_kernel_multistart(W, mask, R0, X0, gammas, tie_rtol=0.0, **kw)
+    wide = joint_kernel_multistart(W, mask, R0, X0, gammas, tie_rtol=1e6, **kw)
+    default = joint_kernel_multistart(W, mask, R0, X0, gammas, **kw)
+    for width in gammas:
+        assert wide[width][0].message.startswith("full schedule")
+        assert lowest[width][1] <= default[width][1] <= lowest[width][1] * (1 + 1e-4)
+    with pytest.raises(ValueError, match="tie_rtol"):
+        joint_kernel_multistart(W, mask, R0, X0, gammas, tie_rtol=-1.0, **kw)

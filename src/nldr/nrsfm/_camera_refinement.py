@@ -12,7 +12,8 @@ shapes and the cameras, "parameterising each R_i with quaternions ... using LM" 
 - :func:`tnh_camera_search`: the alternation can stop where a few frames end with a camera turned over
   (90-180 degrees away, their shapes bent to fit), which the local LM cannot repair; the search re-seats
   those frames (:func:`propose_cameras`) and keeps what lowers the TNH energy (tracks alone, no ground
-  truth: a better optimiser of the same problem).
+  truth: a better optimiser of the same problem);
+- the same search from several starts, with explicit ties: :mod:`nldr.nrsfm._basin_search`.
 
 The shape step's adaptive tolerance, its carried momentum and the LM's 3x3 normal equations
 (:func:`lm_normal_equations`) keep the fixed point of the plain alternation,
@@ -262,7 +263,7 @@ def tnh_alternation(
     )  # fmt: skip
 
 
-PROPOSALS = ("forward", "backward", "local")
+PROPOSALS = ("forward", "backward", "local", "worst")
 
 
 def propose_cameras(R, mode: str, threshold_deg: float = 30.0) -> tuple[np.ndarray, np.ndarray]:
@@ -272,11 +273,15 @@ def propose_cameras(R, mode: str, threshold_deg: float = 30.0) -> tuple[np.ndarr
     ----------
     R : array, shape (F, 2, 3)
         Cameras (projected to orthonormal rows, completed to rotations by the cross product).
-    mode : {"forward", "backward", "local"}
+    mode : {"forward", "backward", "local", "worst"}
         "forward": frames 2..F-1 in order, predicted Q_f = Q_{f-1} Q_{f-2}^T Q_{f-1} (constant angular
         velocity) from the cameras already re-seated; "backward": the same from the end; "local": the
         geodesic midpoint of Q_{f-1} and Q_{f+1} (original cameras), frames 1..F-2, a frame taking it
-        only if it is also more than ``threshold_deg`` from both one-sided predictions.
+        only if it is also more than ``threshold_deg`` from both one-sided predictions; "worst": the
+        one frame furthest from its prediction (the midpoint of its neighbours inside, the constant
+        velocity extrapolation of the two nearest at either end), alone, if more than
+        ``threshold_deg / 2`` from it (a single frame left a little off, which the sweeps, moving
+        several frames at once, and the 30-degree test miss).
     threshold_deg : float > 0, default 30
         A frame is re-seated when its camera is further than this (degrees) from the prediction.
 
@@ -293,7 +298,17 @@ def propose_cameras(R, mode: str, threshold_deg: float = 30.0) -> tuple[np.ndarr
     changed = []
     if F < 3:
         return M[:, :2].copy(), np.zeros(0, dtype=int)
-    if mode == "local":
+    if mode == "worst":
+        Q = Rotation.from_matrix(M)
+        mid = Rotation.from_rotvec(0.5 * (Q[2:] * Q[:-2].inv()).as_rotvec()) * Q[:-2]
+        first, last = Q[1] * Q[2].inv() * Q[1], Q[F - 2] * Q[F - 3].inv() * Q[F - 2]
+        pred = Rotation.concatenate([first, mid, last])
+        off = (pred * Q.inv()).magnitude()
+        f = int(np.argmax(off))  # the first of equal deviations: a fixed rule
+        if off[f] > threshold / 2:
+            out[f] = pred[f].as_matrix()
+            changed = [f]
+    elif mode == "local":
         Q = Rotation.from_matrix(M)
         a, c = Q[:-2], Q[2:]
         mid = Rotation.from_rotvec(0.5 * (c * a.inv()).as_rotvec()) * a

@@ -49,6 +49,7 @@ from .._schedule import isolation_safe_rho0, penalty_schedule
 from .._threads import blas_threads_for
 from .._validation import check_count, check_positive
 from ..data_terms import huber_loss
+from ._basin_search import lowest_energy
 from ._reprojection import check_cameras, check_shapes, check_tracks
 from ._rotations import complete_rotations, quaternion_rotation
 
@@ -283,9 +284,14 @@ def _scaled(value_grad, D, u):
     return value, D * grad
 
 
-def joint_kernel_multistart(W2d, mask, R0, X0, gammas, *, tau: float, multistart: bool = True, **options):
+def joint_kernel_multistart(
+    W2d, mask, R0, X0, gammas, *, tau: float, multistart: bool = True, tie_rtol: float = 1e-4, **options
+):
     """:func:`solve_joint_kernel` for every width of ``gammas``, each keeping the lowest energy (1) at
-    the last rho (:func:`kernel_energy`; no ground truth) among its starts.
+    the last rho (:func:`kernel_energy`; no ground truth) among its starts. Energies within
+    ``tie_rtol`` (relative) of the lowest count as one minimum and go to the earlier start of the list
+    below (:func:`~nldr.nrsfm._basin_search.lowest_energy`), so that the start kept does not
+    hang on the last bit of the arithmetic.
 
     With ``multistart`` the starts of a width are
 
@@ -300,6 +306,7 @@ def joint_kernel_multistart(W2d, mask, R0, X0, gammas, *, tau: float, multistart
     gammas : dict
         Label -> RBF inverse squared width.
     multistart : bool, default True
+    tie_rtol : float >= 0, default 1e-4
     **options
         Further keyword arguments of :func:`solve_joint_kernel` (the schedule, tolerances, ``delta``).
 
@@ -311,7 +318,8 @@ def joint_kernel_multistart(W2d, mask, R0, X0, gammas, *, tau: float, multistart
     rho0 = options.pop("rho0", 1e-3)
     rho_growth, rho_max = options.setdefault("rho_growth", 10.0), options.setdefault("rho_max", 10.0)
     energy_options = {k: options[k] for k in ("center", "delta") if k in options}
-    best, spent = {}, dict.fromkeys(gammas, 0)
+    tie_rtol = check_positive(tie_rtol, "tie_rtol", allow_zero=True)
+    best, spent, tried = {}, dict.fromkeys(gammas, 0), {width: {} for width in gammas}
 
     def consider(width, label, R, X, first_rho):
         res = solve_joint_kernel(W2d, mask, R, X, gamma=gammas[width], tau=tau, rho0=first_rho, **options)
@@ -320,8 +328,10 @@ def joint_kernel_multistart(W2d, mask, R0, X0, gammas, *, tau: float, multistart
         )
         res.message = f"{label} (energy {energy:.10g}): {res.message}"
         spent[width] += res.nit
-        if width not in best or energy < best[width][1]:
-            best[width] = (res, energy)
+        tried[width][label] = (res, energy)
+        order = list(tried[width])  # the order the starts ran in, the list above
+        kept = lowest_energy([(k, e) for k, (_, e) in tried[width].items()], tie_rtol, order)
+        best[width] = tried[width][kept]
 
     second = rho0 * rho_growth
     for width in gammas:

@@ -10,7 +10,8 @@ the paper's method, started from a TNH reconstruction). ``loss="huber"`` is the 
 - TNH, known cameras: :func:`trace_norm_heuristic` or
   :func:`~nldr.nrsfm._admm.robust_trace_norm_heuristic`;
 - TNH, estimated cameras: :func:`~nldr.nrsfm._camera_refinement.tnh_with_camera_refinement` from the
-  rigid cameras, optionally followed by :func:`~nldr.nrsfm._camera_refinement.tnh_camera_search`;
+  rigid cameras, optionally followed by :func:`~nldr.nrsfm._basin_search.tnh_basin_search` (more
+  starts, each with the camera search);
 - kernel, known cameras: :func:`~nldr.regularizer.minimize_regularized` on the reprojection term;
 - kernel, estimated cameras: cameras and shapes jointly in every penalty stage, from several starts
   (:func:`~nldr.nrsfm._joint_kernel.joint_kernel_multistart`).
@@ -36,7 +37,8 @@ from ..kernels import d_max_width, d_med_width
 from ..regularizer import minimize_regularized
 from ..result import SolverResult
 from ._admm import robust_trace_norm_heuristic, solve_admm
-from ._camera_refinement import tnh_camera_search, tnh_with_camera_refinement
+from ._basin_search import tnh_basin_search
+from ._camera_refinement import tnh_with_camera_refinement
 from ._factorization import initialize_cameras
 from ._joint_kernel import joint_kernel_multistart, solve_joint_kernel
 from ._reprojection import OrthographicReprojection, check_cameras, check_tracks, reprojection_error
@@ -208,7 +210,8 @@ def reconstruct(
         Solver options. TNH, known cameras: :func:`trace_norm_heuristic`'s (``method``,
         ``tol``, ...) or the robust TNH's. TNH, estimated cameras: ``max_outer``, ``tol``, ``window``
         of the alternation, ``initial_cameras`` (default: the rigid factorisation) and
-        ``camera_search`` (bool, default False, or a mapping of its options such as ``max_rounds``).
+        ``camera_search`` (bool, default False, or a mapping of the options of
+        :func:`~nldr.nrsfm._basin_search.tnh_basin_search` such as ``starts`` and ``max_rounds``).
         Kernel, known cameras: :func:`~nldr.regularizer.minimize_regularized`'s, flat (its ``options``
         beside its arguments, e.g. ``rho0`` and ``tol``) or as it takes them, and ``depth_scale``
         (L-BFGS in :class:`~nldr.nrsfm.CameraFrameVariables`). Kernel, estimated cameras:
@@ -281,7 +284,7 @@ def reconstruct(
         if search:
             alternation = {k: v for k, v in options.items() if k in ("max_outer", "tol")}
             search = dict(search if isinstance(search, Mapping) else {})
-            res = tnh_camera_search(W, vis, res, tau, **search, **alternation)
+            res = tnh_basin_search(W, vis, R0, tau, rigid=res, **search, **alternation)
         return _result(res, W, vis, res.R, tau=tau, gamma=np.nan, wall=time.perf_counter() - begin, **common)
 
     tau = KERNEL_TAU if tau is None else check_positive(tau, "tau")
