@@ -102,8 +102,8 @@ def _check_problem(data_term, S, gamma, tau, name_S="S"):
 #: (:class:`LongSolveWarning`): one evaluation is an n x n eigenproblem, about n^3, and a default
 #: solve there takes minutes (measured: docs/PERFORMANCE.md#long-solves).
 LONG_SOLVE_ROWS = 1500
-#: CPU seconds of a default exact solve on 1000 oil-flow rows, scaled by n^3 for the warning's
-#: estimate (measured: docs/PERFORMANCE.md#long-solves).
+#: The cost of a default exact solve on 1000 oil-flow rows (seconds of CPU time), scaled by n^3 for
+#: the warning's estimate (measured: docs/PERFORMANCE.md#long-solves).
 _SECONDS_AT_1000_ROWS = 52.0
 
 
@@ -115,8 +115,7 @@ def _warn_long_solve(n: int) -> None:
     minutes = _SECONDS_AT_1000_ROWS * (n / 1000.0) ** 3 / 60.0
     warnings.warn(
         f"minimize_regularized: {n} samples on the exact kernel: expect about {minutes:.0f} CPU minutes "
-        f"(about {_SECONDS_AT_1000_ROWS:.0f} CPU s at 1000 rows, growing as n^3; "
-        "docs/PERFORMANCE.md#long-solves). "
+        "(growing as n^3; docs/PERFORMANCE.md#long-solves). "
         "method='nystroem-warm' reaches an exact answer faster (e.g. options "
         "{'last_landmarks': 200, 'exact_tol': 1e-5}); method='nystroem' (e.g. options {'landmarks': 300}) "
         "is approximate and cheaper still. verbose=True prints each stage as it ends",

@@ -190,7 +190,7 @@ class NRSfMSelection:
     options_ : dict
         TNH: the alternation's options of the folds and the refit (:func:`select_kernel`'s fold starts).
     refit_time_ : float
-        CPU seconds of the refit alone: the cost of one solve.
+        CPU time of the refit alone (seconds): the cost of one solve.
     """
 
     tau_: float
