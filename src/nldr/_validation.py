@@ -65,12 +65,13 @@ def check_symmetric_kernel(K, name: str = "K", *, rtol: float = 1e-8) -> np.ndar
     return 0.5 * (K + K.T)
 
 
-def check_magnitude(values: np.ndarray, name: str) -> None:
+def check_magnitude(values: np.ndarray, name: str, *, fix: str | None = None) -> None:
     """Refuse data whose sum of squares would overflow float64.
 
     The solvers square the data (residuals, pairwise distances): entries beyond about
     sqrt(max float / (4 m)) for m of them overflow to infinity, and the eigensolver then fails far from
     the cause. The bound holds for residuals and distances of points up to twice the data's range.
+    ``fix`` replaces the message's last sentence (default: rescale ``name``).
     """
     if values.size == 0:
         return
@@ -79,7 +80,8 @@ def check_magnitude(values: np.ndarray, name: str) -> None:
     if largest > limit:
         raise ValueError(
             f"{name} has entries up to {largest:.3g} in magnitude; squared errors overflow float64 "
-            f"beyond about {limit:.3g} for {values.size} entries. Rescale {name} (e.g. standardise it)"
+            f"beyond about {limit:.3g} for {values.size} entries. "
+            + (fix or f"Rescale {name} (e.g. standardise it)")
         )
 
 
@@ -87,28 +89,20 @@ def check_squares_representable(W: np.ndarray, mask: np.ndarray, name: str) -> N
     """Refuse observed entries whose squares float64 cannot hold: too large at all, or too small in a column.
 
     The methods square differences of entries (distances between rows, residuals, variances). Beyond
-    the bound of :func:`check_magnitude` sums of squares overflow; in a column whose largest observed
-    magnitude is below sqrt(smallest normal float64), every square underflows (to zero or a
-    subnormal without precision), so the column's spread and its share of every distance are lost.
+    the bound of :func:`check_magnitude` (applied here) sums of squares overflow; in a column whose
+    largest observed magnitude is below sqrt(smallest normal float64), every square underflows (to
+    zero or a subnormal without precision), so the column's spread and its share of every distance are lost.
     Data in any ordinary units lies far inside both bounds. W (n, d) is zero where ``mask`` is False.
     """
-    observed = np.abs(W[mask])
-    largest = float(observed.max(initial=0.0))
-    limit = float(np.sqrt(np.finfo(np.float64).max / (16.0 * max(observed.size, 1))))
-    if largest > limit:
-        raise ValueError(
-            f"{name} has observed entries up to {largest:.3g} in magnitude: their squares overflow float64 "
-            f"beyond about {limit:.3g} for {observed.size} entries. Rescale the columns of {name} "
-            "(e.g. divide each by a typical magnitude of its entries)"
-        )
+    fix = f"Rescale the columns of {name} (e.g. divide each by a typical magnitude of its entries)"
+    check_magnitude(W[mask], name, fix=fix)
     column_largest = np.max(np.where(mask, np.abs(W), 0.0), axis=0)
     floor = float(np.sqrt(np.finfo(np.float64).tiny))
     tiny = np.flatnonzero((column_largest > 0.0) & (column_largest < floor))
     if tiny.size:
         raise ValueError(
             f"column(s) {tiny[:10].tolist()}{' ...' if tiny.size > 10 else ''} of {name} have observed "
-            f"entries below {floor:.3g} in magnitude: their squares underflow float64. Rescale the "
-            f"columns of {name} (e.g. divide each by a typical magnitude of its entries)"
+            f"entries below {floor:.3g} in magnitude: their squares underflow float64. {fix}"
         )
 
 
