@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._spectral import check_eigensolver
-from ._validation import check_count, check_positive
+from ._validation import check_count, check_flag, check_positive
 
 __all__ = [
     "ExactOptions",
@@ -31,12 +31,6 @@ __all__ = [
 #: :func:`nldr.regularizer.minimize_regularized`'s default first and last penalty weights
 DEFAULT_RHO0 = 1.0
 DEFAULT_RHO_MAX = 1e4
-
-
-def _check_flag(value, name: str) -> bool:
-    if not isinstance(value, bool | np.bool_):
-        raise ValueError(f"{name} must be True or False; got {value!r}")
-    return bool(value)
 
 
 def _check_seed(value, name: str) -> int:
@@ -79,7 +73,7 @@ class _StoppingOptions:
         self._set("gtol", check_positive(self.gtol, "options['gtol']"))
         if self.stage_tol is not None:
             self._set("stage_tol", check_positive(self.stage_tol, "options['stage_tol']"))
-        self._set("isolation_guard", _check_flag(self.isolation_guard, "options['isolation_guard']"))
+        self._set("isolation_guard", check_flag(self.isolation_guard, "options['isolation_guard']"))
         if self.scale is not None:
             self._set("scale", check_positive(self.scale, "options['scale']"))
 
