@@ -107,7 +107,8 @@ def select_complete(X, p, seed, cv) -> tuple[dict, pd.DataFrame]:
 def _corrupt_manifold(c) -> dict:
     """The fixed knobs of ``complete`` in the ``corrupt`` jobs (config block ``corrupt``)."""
     tau = 10.0 ** c["log10_tau"]
-    return {"standardize": False, "gamma": c["gamma"], "tau": tau, "n_neighbors": c["n_neighbors"], "starts": "each"}
+    fixed = {"gamma": c["gamma"], "tau": tau, "n_neighbors": c["n_neighbors"], "starts": "each"}
+    return {"standardize": False, **fixed}  # gamma in the data's units, as Table 2
 
 
 def select_denoising(X, p, share, seed, cv, c) -> tuple[dict, dict]:

@@ -126,7 +126,8 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
         return np.where(mask, (W - self.shift_) / self.scale_, 0.0)
 
     def _in_data_units(self, Z_hat, Z, W, mask) -> np.ndarray:
-        """An estimate in solved units back in the data's; observed entries the solve kept are W's, exactly."""
+        """An estimate in solved units back in the data's units; the observed entries the solve kept
+        are W's, exactly."""
         if not (self._standardizes and self.standardize):
             return Z_hat
         kept = mask & (Z_hat == Z)

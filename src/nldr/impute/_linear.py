@@ -73,7 +73,8 @@ class PPCAImputer(MaskedImputerBase):
         Solve on the columns standardised by their observed entries' mean and standard deviation (a
         constant column is only centred) and return the estimate in the data's units, so that the
         completion is unit-free per column; the parameters in units of X are then in standardised
-        units. False solves on X as given (the paper's Table 2 setting: PPCA's isotropic noise is in X's units).
+        units. False solves on X as given (the paper's Table 2 setting: PPCA's isotropic noise is in
+        X's units).
     n_components : int or None, default None
         Latent dimension q, 1 <= q < n_features; None: min(10, n_features - 1) (on oil flow's 12
         columns q = 9-11 compare alike: docs/REPRODUCTION.md#table-2-baselines).
@@ -235,7 +236,9 @@ class SoftImputer(MaskedImputerBase):
         "max_iter": [Interval(Integral, 1, None, closed="left")],
     }
 
-    def __init__(self, missing_values=np.nan, *, standardize=True, lam=None, center=True, tol=1e-7, max_iter=5000):
+    def __init__(
+        self, missing_values=np.nan, *, standardize=True, lam=None, center=True, tol=1e-7, max_iter=5000
+    ):
         self.missing_values = missing_values
         self.standardize = standardize
         self.lam = lam

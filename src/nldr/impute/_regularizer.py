@@ -415,9 +415,9 @@ class KernelRegularizerImputer(MaskedImputerBase):
         manifold (at ``gamma``, ``tau``, the tuning's fold solver) on the other rows, hides a share (the
         training matrix's missing share, at least :data:`TUNE_ROW_HIDDEN`) of the observed entries of
         :data:`TUNE_ROW_SHARE` of the rows, completes them with every candidate, and scores the mean
-        squared error on the hidden entries (units of W: standardised when ``standardize``); the smallest mean wins
-        (:class:`~nldr.model_selection.HoldoutSearch`, one fit per fold shared by the candidates).
-        Sets ``transform_results_`` (candidate -> mean error)."""
+        squared error on the hidden entries (units of W: standardised when ``standardize``); the
+        smallest mean wins (:class:`~nldr.model_selection.HoldoutSearch`, one fit per fold shared by
+        the candidates). Sets ``transform_results_`` (candidate -> mean error)."""
         candidates = self._transform_candidates()
         if len(candidates) == 1:
             return candidates[0]
