@@ -163,9 +163,11 @@ MUTANTS = [
         "src/nldr/impute/_base.py",
         "        self._check_moved(W, mask)\n",
         "",
-        ("tests/test_reliability_units.py::test_kernel_baselines_in_raw_units_that_do_not_move_say_so",
-         "tests/test_reliability_units.py::test_the_papers_settings_on_other_units_warn_instead_of_returning_the_mean_fill_silently",
-         "tests/test_reliability_units.py::test_a_lam_that_removes_everything_is_a_mean_fill_not_a_convergence"),
+        (
+            "tests/test_reliability_units.py::test_kernel_baselines_in_raw_units_that_do_not_move_say_so",
+            "tests/test_reliability_units.py::test_the_papers_settings_on_other_units_warn_instead_of_returning_the_mean_fill_silently",
+            "tests/test_reliability_units.py::test_a_lam_that_removes_everything_is_a_mean_fill_not_a_convergence",
+        ),
     ),
     Mutant(
         "a search no better than the column means is not reported",
