@@ -137,6 +137,45 @@ MUTANTS = [
         "SD_DDOF = 0",
         ("tests/test_experiments.py",),
     ),
+    Mutant(
+        "imputers solve in the data's units (standardisation dropped)",
+        "src/nldr/impute/_base.py",
+        "self.shift_, self.scale_ = _standardisation(W, mask)",
+        "self.shift_, self.scale_ = np.zeros(W.shape[1]), np.ones(W.shape[1])",
+        ("tests/test_reliability_units.py::test_every_estimator_is_unit_free_per_column",),
+    ),
+    Mutant(
+        "SoftImpute's first stopping test absolute again",
+        "src/nldr/_baselines/peers.py",
+        "size = float(np.sum(Z * Z)) or float(np.sum(Z_new * Z_new))",
+        "size = float(np.sum(Z * Z)) or 1.0",
+        ("tests/test_reliability_units.py::test_soft_impute_on_small_units_takes_the_same_iterates",),
+    ),
+    Mutant(
+        "the regularizer's hold-out search scores the data's units",
+        "src/nldr/impute/_regularizer.py",
+        "chosen = self._tune(Z, mask, grid)",
+        "chosen = self._tune(W, mask, grid)",
+        ("tests/test_reliability_units.py::test_the_regularizers_search_is_not_decided_by_a_columns_units",),
+    ),
+    Mutant(
+        "a mean fill is called converged",
+        "src/nldr/impute/_base.py",
+        "        self._check_moved(W, mask)\n",
+        "",
+        (
+            "tests/test_reliability_units.py::test_kernel_baselines_in_raw_units_that_do_not_move_say_so",
+            "tests/test_reliability_units.py::test_the_papers_settings_on_other_units_warn_instead_of_returning_the_mean_fill_silently",
+            "tests/test_reliability_units.py::test_a_lam_that_removes_everything_is_a_mean_fill_not_a_convergence",
+        ),
+    ),
+    Mutant(
+        "a search no better than the column means is not reported",
+        "src/nldr/impute/_regularizer.py",
+        "if errors is None or errors[0] < errors[1]:",
+        "if True:",
+        ("tests/test_reliability_units.py::test_a_search_no_better_than_the_column_means_says_so",),
+    ),
 ]
 
 

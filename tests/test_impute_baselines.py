@@ -43,25 +43,29 @@ def hide(X, p, rng):
     return np.where(mask, X, np.nan), mask
 
 
-# (estimator, the solver call with the same settings)
+# (estimator, the solver call with the same settings), in the data's units: the estimators standardise by
+# default, the solver functions do not
 CASES = {
-    "PPCA": (PPCAImputer(n_components=2), lambda W, m: ppca_impute(W, m, 2).x),
-    "PPCA default q": (PPCAImputer(), lambda W, m: ppca_impute(W, m, 5).x),
-    "PKPCA": (PKPCAImputer(gamma=0.3), lambda W, m: pkpca_impute(W, m, 0.3).x),
+    "PPCA": (PPCAImputer(standardize=False, n_components=2), lambda W, m: ppca_impute(W, m, 2).x),
+    "PPCA default q": (PPCAImputer(standardize=False), lambda W, m: ppca_impute(W, m, 5).x),
+    "PKPCA": (PKPCAImputer(standardize=False, gamma=0.3), lambda W, m: pkpca_impute(W, m, 0.3).x),
     "PKPCA q": (
-        PKPCAImputer(gamma=0.3, n_components=3),
+        PKPCAImputer(standardize=False, gamma=0.3, n_components=3),
         lambda W, m: pkpca_impute(W, m, 0.3, n_components=3).x,
     ),
-    "RKPCA": (RKPCAImputer(gamma=0.3), lambda W, m: rkpca_impute(W, m, 0.3).x),
+    "RKPCA": (RKPCAImputer(standardize=False, gamma=0.3), lambda W, m: rkpca_impute(W, m, 0.3).x),
     "RKPCA weight": (
-        RKPCAImputer(gamma=0.3, n_components=0.9, weight=2.0),
+        RKPCAImputer(standardize=False, gamma=0.3, n_components=0.9, weight=2.0),
         lambda W, m: rkpca_impute(W, m, 0.3, n_components=0.9, weight=2.0).x,
     ),
-    "1-NN": (NearestNeighbourImputer(), lambda W, m: nearest_neighbour_impute(W, m).x),
-    "SoftImpute": (SoftImputer(lam=0.5), lambda W, m: soft_impute(W, m, lam=0.5).x),
-    "RPCA": (RobustPCAImputer(lam_factor=2.0), lambda W, m: rpca_impute(W, m, lam_factor=2.0).x),
+    "1-NN": (NearestNeighbourImputer(standardize=False), lambda W, m: nearest_neighbour_impute(W, m).x),
+    "SoftImpute": (SoftImputer(standardize=False, lam=0.5), lambda W, m: soft_impute(W, m, lam=0.5).x),
+    "RPCA": (
+        RobustPCAImputer(standardize=False, lam_factor=2.0),
+        lambda W, m: rpca_impute(W, m, lam_factor=2.0).x,
+    ),
     "PPCA solver knobs": (
-        PPCAImputer(n_components=2, max_iter=3, accelerate=False),
+        PPCAImputer(standardize=False, n_components=2, max_iter=3, accelerate=False),
         lambda W, m: ppca_impute(W, m, 2, max_iter=3, accelerate=False).x,
     ),
 }
@@ -103,7 +107,7 @@ def test_transform_new_rows_keeps_observed_entries_and_beats_the_means(rng, est)
 def test_ppca_posterior_mean_of_new_rows_is_the_e_step(rng):
     X = low_rank(rng)
     W, mask = hide(X, 0.2, rng)
-    est = PPCAImputer(n_components=2).fit(W)
+    est = PPCAImputer(standardize=False, n_components=2).fit(W)
     mu, C, s2 = est.mean_, est.components_, est.noise_variance_
     w, o = W[-1], mask[-1].copy()
     o[:2] = False

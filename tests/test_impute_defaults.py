@@ -45,15 +45,17 @@ def test_the_default_tunes_tau_and_width_within_the_grid_and_keeps_the_record(pr
 
 def test_the_tuning_scores_are_the_hold_out_errors_of_the_documented_folds(problem):
     """Brute force for the cold solve of each fold (the first candidate): the fold's matrix, the solve
-    at the fold tolerances, the mean squared error on the hidden entries."""
+    at the fold tolerances, the mean squared error on the hidden entries, in standardised units (the
+    search runs on the matrix standardised by the estimator's mean_ and scale_)."""
     _, W, mask = problem
     est = KernelRegularizerImputer(random_state=None).fit(W)
+    Z = (W - est.mean_) / est.scale_
     folds = holdout_folds(mask, module.TUNE_FOLDS, 0, holdout=module.TUNE_HOLDOUT)
     first = est.cv_results_["params"][0]
     for k, hidden in enumerate(folds):
         fold = KernelRegularizerImputer(**first, method="exact", **module.TUNE_TOLERANCES)
-        X_hat = fold.fit_transform(np.where(hidden, np.nan, W))
-        error = np.mean((X_hat - W)[hidden] ** 2)
+        Z_hat = fold.fit_transform(np.where(hidden, np.nan, Z))
+        error = np.mean((Z_hat - Z)[hidden] ** 2)
         assert est.cv_results_[f"split{k}_test_error"][0] == pytest.approx(error, rel=1e-8)
 
 
@@ -165,7 +167,8 @@ def test_the_row_fold_scores_are_the_brute_force_errors_and_cost_one_solve_per_f
     est.transform(X_new)
     assert len(solves) == module.TUNE_FOLDS  # the candidates of a fold share its one fit
     candidates = module.TUNE_TRANSFORM
-    expected = brute_force_row_fold_errors(np.nan_to_num(W), mask, est.gamma_, est.tau_, candidates)
+    Z = np.where(mask, (np.nan_to_num(W) - est.mean_) / est.scale_, 0.0)  # the folds score standardised units
+    expected = brute_force_row_fold_errors(Z, mask, est.gamma_, est.tau_, candidates)
     assert list(est.transform_results_) == list(module.TUNE_TRANSFORM)
     for candidate, error in expected.items():
         assert est.transform_results_[candidate] == pytest.approx(error, rel=1e-10)

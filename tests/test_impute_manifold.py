@@ -37,7 +37,7 @@ KNOBS = [
 @pytest.mark.parametrize("knobs", KNOBS)
 def test_transform_is_robust_kernel_pcas_complete_bit_for_bit(data, knobs):
     X_train, X_new, mask = data
-    imputer = RobustKernelPCAImputer(gamma=1.0, tau=0.05, **knobs).fit(X_train)
+    imputer = RobustKernelPCAImputer(standardize=False, gamma=1.0, tau=0.05, **knobs).fit(X_train)
     model = RobustKernelPCA(gamma=1.0, tau=0.05).fit(X_train)
     np.testing.assert_array_equal(imputer.model_.eigenvectors_, model.eigenvectors_)
     expected = model.complete(np.where(mask, X_new, np.nan), mask, **knobs)
@@ -46,9 +46,8 @@ def test_transform_is_robust_kernel_pcas_complete_bit_for_bit(data, knobs):
 
 def test_completion_keeps_observed_entries_and_beats_the_column_means(data):
     X_train, X_new, mask = data
-    X_hat = RobustKernelPCAImputer(gamma=1.0, tau=0.05, starts="each").fit(X_train).transform(
-        np.where(mask, X_new, np.nan)
-    )
+    imputer = RobustKernelPCAImputer(standardize=False, gamma=1.0, tau=0.05, starts="each")
+    X_hat = imputer.fit(X_train).transform(np.where(mask, X_new, np.nan))
     # kept: the mean of k copies of an observed entry, exact up to the rounding of that mean
     np.testing.assert_allclose(X_hat[mask], X_new[mask], rtol=8 * np.finfo(float).eps)
     means = np.broadcast_to(X_train.mean(axis=0), X_new.shape)
@@ -59,7 +58,7 @@ def test_incomplete_training_rows_stay_out_of_the_manifold(data):
     X_train, _, _ = data
     W = X_train.copy()
     W[::3, 1] = np.nan
-    imputer = RobustKernelPCAImputer(gamma=1.0, tau=0.05).fit(W)
+    imputer = RobustKernelPCAImputer(standardize=False, gamma=1.0, tau=0.05).fit(W)
     np.testing.assert_array_equal(imputer.model_.X_fit_, X_train[np.isfinite(W).all(axis=1)])
     out = imputer.fit_transform(W)  # fit(W).transform(W): complete rows unchanged with rho None
     np.testing.assert_array_equal(out[1::3], X_train[1::3])
@@ -85,7 +84,8 @@ def test_warm_start_reuses_the_manifold_and_the_largest_neighbour_solves(data):
     cold transform (the L-BFGS blocks hold other rows)."""
     X_train, X_new, mask = data
     W = np.where(mask, X_new, np.nan)
-    imputer = RobustKernelPCAImputer(gamma=1.0, tau=0.05, starts="each", n_neighbors=6, warm_start=True)
+    knobs = {"standardize": False, "gamma": 1.0, "tau": 0.05, "starts": "each"}
+    imputer = RobustKernelPCAImputer(**knobs, n_neighbors=6, warm_start=True)
     imputer.fit(X_train).transform(W)
     model = imputer.model_
     imputer.set_params(n_neighbors=3, weights="distance").fit(X_train)
@@ -93,7 +93,7 @@ def test_warm_start_reuses_the_manifold_and_the_largest_neighbour_solves(data):
     warm = imputer.transform(W)
     sol, dist = model.complete_each(W, mask, n_neighbors=6)
     np.testing.assert_array_equal(warm, average_solutions(sol[:, :3], dist[:, :3], "distance"))
-    cold = RobustKernelPCAImputer(gamma=1.0, tau=0.05, starts="each", n_neighbors=3, weights="distance")
+    cold = RobustKernelPCAImputer(**knobs, n_neighbors=3, weights="distance")
     np.testing.assert_allclose(warm, cold.fit(X_train).transform(W), atol=1e-4)
     imputer.set_params(tau=0.1).fit(X_train)
     assert imputer.model_ is not model  # another tau: refitted
@@ -111,7 +111,7 @@ def test_a_neighbour_search_on_the_warm_path_scores_the_truncated_solves(data):
     def sse(X, X_hat, h):
         return float(np.sum((X_hat - X)[h] ** 2))
 
-    est = RobustKernelPCAImputer(gamma=1.0, tau=0.05, warm_start=True)
+    est = RobustKernelPCAImputer(standardize=False, gamma=1.0, tau=0.05, warm_start=True)
     folds = [(fit_rows, hidden)]
     search = HoldoutSearch(est, grid, folds=folds, scoring=sse, path="n_neighbors", refit=False)
     errors = search.fit(X_train).cv_results_["mean_test_error"]

@@ -129,7 +129,8 @@ def soft_impute(
     center : bool, default True
         Complete ``W - 1 mu^T`` (mu: observed column means) and add mu back (module docstring).
     tol : float > 0, default 1e-7
-        Stop when ``||Z_{k+1} - Z_k||_F^2 <= tol ||Z_k||_F^2`` (for Z_k = 0: ``<= tol``).
+        Stop when ``||Z_{k+1} - Z_k||_F^2 <= tol ||Z_k||_F^2`` (for Z_k = 0: ``<= tol ||Z_{k+1}||_F^2``,
+        i.e. only at ``Z_{k+1} = 0``): dimensionless, the same iterates in any units of W.
     max_iter : int >= 1, default 5000
     Z0 : array, shape (n, d), optional
         Starting point (a warm start along a lam path), in centred units when ``center``; default the
@@ -163,9 +164,11 @@ def soft_impute(
         nit += 1
         Z_new, rank = singular_value_threshold(np.where(mask, Wc, Z), lam)
         change = float(np.sum((Z_new - Z) ** 2))
-        size = float(np.sum(Z * Z))
+        # relative to the iterate's size; from Z_k = 0 (the default start) to Z_{k+1}'s, so that the
+        # test is unit-free and a step from zero stops only at the fixed point Z_{k+1} = 0
+        size = float(np.sum(Z * Z)) or float(np.sum(Z_new * Z_new))
         Z, step = Z_new, float(np.sqrt(change))
-        if change <= tol * (size if size > 0 else 1.0):
+        if change <= tol * size:
             converged = True
             break
     X = np.where(mask, W, Z + mu)

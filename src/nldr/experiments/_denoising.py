@@ -97,7 +97,8 @@ def _denoiser(method: str) -> tuple[Pipeline, str]:
     of its knobs: held-out pixels filled with the fit's pixel means (SimpleImputer), then the
     reconstruction (PCA, KernelPCA) or RobustKernelPCA's denoising with every pixel observed."""
     if method == "RobustKernelPCA":
-        return Pipeline([("fill", SimpleImputer()), ("denoise", RobustKernelPCAImputer())]), "denoise__"
+        denoise = RobustKernelPCAImputer(standardize=False)  # its grid's widths are in the pixels' units
+        return Pipeline([("fill", SimpleImputer()), ("denoise", denoise)]), "denoise__"
     model = PCA() if method == "PCA" else KernelPCA(kernel="rbf", fit_inverse_transform=True)
     denoiser = DecompositionDenoiser(model)
     return Pipeline([("fill", SimpleImputer()), ("denoise", denoiser)]), "denoise__estimator__"

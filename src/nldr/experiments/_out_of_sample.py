@@ -97,7 +97,7 @@ def select_complete(X, p, seed, cv) -> tuple[dict, pd.DataFrame]:
         if "each" in cv["starts"]:
             grid.append({**point, "starts": ["each"], "weights": list(cv["weights"])})
     folds = row_folds(X, p, seed, cv["holdout_rows"], cv["n_folds"])
-    imputer = RobustKernelPCAImputer(warm_start=True)
+    imputer = RobustKernelPCAImputer(standardize=False, warm_start=True)
     search = HoldoutSearch(imputer, grid, folds=folds, scoring=_sse, path="n_neighbors", refit=False).fit(X)
     best = {"weights": "uniform", **search.best_params_}
     chosen = {key: best[key] for key in ("gamma", "tau", "n_neighbors", "starts", "weights")}
@@ -107,7 +107,8 @@ def select_complete(X, p, seed, cv) -> tuple[dict, pd.DataFrame]:
 def _corrupt_manifold(c) -> dict:
     """The fixed knobs of ``complete`` in the ``corrupt`` jobs (config block ``corrupt``)."""
     tau = 10.0 ** c["log10_tau"]
-    return {"gamma": c["gamma"], "tau": tau, "n_neighbors": c["n_neighbors"], "starts": "each"}
+    fixed = {"gamma": c["gamma"], "tau": tau, "n_neighbors": c["n_neighbors"], "starts": "each"}
+    return {"standardize": False, **fixed}  # gamma in the data's units, as Table 2
 
 
 def select_denoising(X, p, share, seed, cv, c) -> tuple[dict, dict]:
@@ -266,7 +267,7 @@ class OutOfSample(Experiment):
             return JobOutput(rows=pd.DataFrame(rows))
 
         chosen, _ = select_complete(X_train, p, seed, cv)
-        model = RobustKernelPCAImputer(**chosen).fit(X_train)
+        model = RobustKernelPCAImputer(standardize=False, **chosen).fit(X_train)
         X_hat, seconds = _timed(lambda: model.transform(W))
         record("complete", X_hat, seconds, X_test.shape[0], {**chosen, "rank": model.n_components_})
 

@@ -197,12 +197,12 @@ class Robust(Experiment):
             chosen = {**huber.best_params_, "delta": huber.best_estimator_.delta}
             record("Ours (Huber)", X_hat, time.perf_counter() - start, _words(chosen))
             start = time.perf_counter()
-            rpca, _ = baseline_grid("RPCA", W)
+            rpca, _ = baseline_grid("RPCA", W, standardize=False)  # the data's units, as Ours here
             grid = {"lam_factor": list(settings["rpca_lam_factors"])}
             rpca = HoldoutSearch(rpca, grid, scoring="absolute", **cv)
             record("RPCA", rpca.fit_transform(W), time.perf_counter() - start, repr(rpca.best_params_))
             start = time.perf_counter()
-            soft, grid = baseline_grid("SoftImpute", W)
+            soft, grid = baseline_grid("SoftImpute", W, standardize=False)  # result_ in the data's units
             # its low-rank fit Z + mu on every entry: the imputed matrix would keep the outliers
             soft = HoldoutSearch(soft, grid, scoring="absolute", **cv).fit(W)
             fit = soft.best_estimator_.result_  # the hidden entries were scored on the same Z + mu

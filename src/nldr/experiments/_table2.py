@@ -218,7 +218,8 @@ def run_peers(
     rows = []
     for method in methods:
         start = time.perf_counter()
-        estimator, grid = baseline_grid(method, W, n_trees=n_trees)
+        # the data's units, as the paper's rows (oil flow's columns share one unit)
+        estimator, grid = baseline_grid(method, W, n_trees=n_trees, standardize=False)
         label = peer_label(method, bool(grid), n_trees)
         if grid:
             search = HoldoutSearch(estimator, grid, n_folds=n_folds, random_state=seed)

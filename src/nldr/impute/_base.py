@@ -25,23 +25,47 @@ therefore returns the fitted estimate for any row identical to a training row (s
 missing entries), so that ``fit(X).transform(X)`` equals ``fit_transform(X)`` as scikit-learn's
 contract says, and completes the other rows with ``_complete``.
 
+Units. A subclass that sets ``_standardizes`` takes a ``standardize`` parameter (default True): the
+base class then hands ``_solve`` and ``_complete`` the columns standardised by their observed
+entries' mean and standard deviation (:func:`nldr._baselines._masked.observed_standardisation`),
+and returns their estimates in the data's units, each observed entry the solve left in place given
+back exactly. The completion is then unit-free per column: scaling a column scales its completion
+(by a power of two, exactly; by any other factor, up to the rounding of the standardisation carried
+through the solve).
+
+A solve that ends at its start. Every iterative method here starts from the column means (mean
+imputation). An estimate whose missing entries are all still the observed column means (to within
+:data:`MEAN_FILL_RTOL` of the column's standard deviation) is a mean fill, not a converged solve:
+``fit`` then sets ``result_``'s status to :data:`~nldr.result.INACCURATE` (``success`` False) and
+warns (:class:`sklearn.exceptions.ConvergenceWarning`) naming the likely cause (the subclass's
+``_mean_fill_cause``).
+
 BLAS threads. ``fit`` and ``transform`` run on the library's thread choice for the training rows'
 count (:func:`nldr._threads.blas_threads_for`), the estimator's own array arithmetic included.
 """
 
 from __future__ import annotations
 
+import warnings
 from numbers import Real
 
 import numpy as np
 from sklearn.base import BaseEstimator, OneToOneFeatureMixin, TransformerMixin, _fit_context
+from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .._baselines._masked import observed_standardisation
 from .._threads import blas_threads_for
 from .._validation import check_masked_matrix, check_squares_representable
+from ..result import INACCURATE
 
-__all__ = ["MaskedImputerBase"]
+__all__ = ["MaskedImputerBase", "MEAN_FILL_RTOL"]
+
+#: An estimate's missing entries within this multiple of their column's standard deviation of the
+#: column's observed mean are a mean fill. Rounding of the (un)standardisation is ~1e-16 relative; a
+#: solve that moves an entry moves it by orders of magnitude more than this.
+MEAN_FILL_RTOL = 1e-9
 
 
 def _row_keys(X: np.ndarray) -> list[bytes]:
@@ -78,6 +102,36 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
     #: fewest training rows and columns the method accepts
     _min_samples = 1
     _min_features = 1
+    #: the class has a ``standardize`` parameter, and the base class standardises for it (module docstring)
+    _standardizes = False
+
+    def _mean_fill_cause(self) -> str:
+        """The likely causes of a solve that ends at its start, for the warning (subclasses name theirs)."""
+        return "the data's units (entries far from unit scale): rescale X"
+
+    def _units(self, W, mask) -> None:
+        """For a class that ``_standardizes``: set ``shift_`` and ``scale_`` (n_features,), the
+        standardisation (zeros and ones when ``standardize`` is False)."""
+        if not self._standardizes:
+            return
+        if self.standardize:
+            self.shift_, self.scale_ = _standardisation(W, mask)
+        else:
+            self.shift_, self.scale_ = np.zeros(W.shape[1]), np.ones(W.shape[1])
+
+    def _standardised(self, W, mask) -> np.ndarray:
+        """W (m, d) in the solved units (zero at the missing entries)."""
+        if not (self._standardizes and self.standardize):
+            return W
+        return np.where(mask, (W - self.shift_) / self.scale_, 0.0)
+
+    def _in_data_units(self, Z_hat, Z, W, mask) -> np.ndarray:
+        """An estimate in solved units back in the data's units; the observed entries the solve kept
+        are W's, exactly."""
+        if not (self._standardizes and self.standardize):
+            return Z_hat
+        kept = mask & (Z_hat == Z)
+        return np.where(kept, W, Z_hat * self.scale_ + self.shift_)
 
     def _missing_mask(self, X: np.ndarray) -> np.ndarray:
         if _is_nan_marker(self.missing_values):
@@ -108,10 +162,13 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
 
     def _fit(self, X):
         W, mask = self._validated(X, reset=True)
+        self._units(W, mask)
+        Z = self._standardised(W, mask)
         with blas_threads_for(W.shape[0]):
-            X_hat, result = self._solve(W, mask)
-        self.completed_ = np.asarray(X_hat, dtype=np.float64)
+            Z_hat, result = self._solve(Z, mask)
+        self.completed_ = np.asarray(self._in_data_units(np.asarray(Z_hat, dtype=np.float64), Z, W, mask))
         self.result_ = result
+        self._check_moved(W, mask)
         if hasattr(result, "nit"):
             self.n_iter_ = int(result.nit)
         self._seen = {key: i for i, key in reversed(list(enumerate(_row_keys(np.where(mask, W, np.nan)))))}
@@ -148,14 +205,46 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
         out[old] = self.completed_[seen[old]]
         new = ~old
         if new.any():
+            Z = self._standardised(W[new], mask[new])
             with blas_threads_for(self.completed_.shape[0]):
-                out[new] = self._complete(W[new], mask[new])
+                out[new] = self._in_data_units(self._complete(Z, mask[new]), Z, W[new], mask[new])
         return out
+
+    def _check_moved(self, W, mask) -> None:
+        """A fit whose estimate is the mean fill says so (module docstring): ``result_`` not successful
+        and a ConvergenceWarning naming the likely cause."""
+        missing = ~mask & mask.any(axis=0)  # an unobserved column has no mean to compare with
+        if not missing.any():
+            return
+        mean, sd = _standardisation(W, mask)
+        gap = np.abs(self.completed_ - mean[None, :])
+        if np.any(gap[missing] > MEAN_FILL_RTOL * np.broadcast_to(sd, W.shape)[missing]):
+            return
+        result = self.result_
+        if result is not None and hasattr(result, "status"):
+            result.status = INACCURATE
+            result.message = f"{result.message}; the estimate is the mean fill it started from"
+        warnings.warn(
+            f"{type(self).__name__} returned the column means' fill: the solve ended where it started "
+            f"(its missing entries are the observed column means). Likely cause: {self._mean_fill_cause()}",
+            ConvergenceWarning,
+            stacklevel=4,
+        )
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()
         tags.input_tags.allow_nan = True
         return tags
+
+
+def _standardisation(W: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~nldr._baselines._masked.observed_standardisation`, a column with no observed entry
+    left as it is (shift 0, scale 1)."""
+    seen = mask.any(axis=0)
+    shift, scale = np.zeros(W.shape[1]), np.ones(W.shape[1])
+    if seen.any():
+        shift[seen], scale[seen] = observed_standardisation(W[:, seen], mask[:, seen])
+    return shift, scale
 
 
 def _is_nan_marker(value) -> bool:

@@ -12,7 +12,7 @@ from sklearn.experimental import enable_iterative_imputer  # noqa: F401
 from sklearn.impute import IterativeImputer, KNNImputer
 from sklearn.linear_model import BayesianRidge
 
-from .._baselines._masked import mean_fill
+from .._baselines._masked import mean_fill, observed_standardisation
 from .._validation import as_float_matrix
 from ..model_selection._folds import GAMMA_MULTIPLES, median_gamma
 from ._kernel_pca import PKPCAImputer, RKPCAImputer
@@ -100,7 +100,9 @@ def missforest_imputer(
     )
 
 
-def baseline_grid(method: str, X, *, n_trees: int = MISSFOREST_TREES) -> tuple[object, dict]:
+def baseline_grid(
+    method: str, X, *, n_trees: int = MISSFOREST_TREES, standardize: bool = True
+) -> tuple[object, dict]:
     """Default ``(estimator, param_grid)`` of a baseline or a peer, for
     :class:`~nldr.model_selection.HoldoutSearch`.
 
@@ -131,6 +133,10 @@ def baseline_grid(method: str, X, *, n_trees: int = MISSFOREST_TREES) -> tuple[o
     X : array, shape (n, d), NaN where missing (the grid's widths and sizes depend on it).
     n_trees : int, default :data:`MISSFOREST_TREES`
         missForest's trees per column (the other methods ignore it).
+    standardize : bool, default True
+        The ``standardize`` of the library's imputers (PPCA, PKPCA, RKPCA, SoftImpute, RPCA; the
+        others ignore it); the grids' widths and ``lam`` are in the units those imputers solve in
+        (X's columns standardised by their observed entries, or X's own units when False).
 
     Returns
     -------
@@ -142,6 +148,12 @@ def baseline_grid(method: str, X, *, n_trees: int = MISSFOREST_TREES) -> tuple[o
     X = as_float_matrix(X, "X", allow_nan=True)
     mask = ~np.isnan(X)
     n, d = X.shape
+    if not isinstance(standardize, bool | np.bool_):
+        raise ValueError(f"standardize must be a bool; got {standardize!r}")
+    ours = {"standardize": bool(standardize)}
+    if standardize and mask.any(axis=0).all():  # the grids in the units the imputers solve in
+        shift, scale = observed_standardisation(np.where(mask, X, 0.0), mask)
+        X = np.where(mask, (X - shift) / scale, np.nan)
     if method == "KNNImputer":
         neighbours = [k for k in (1, 2, 3, 5, 10, 20, 50) if k < n]
         return KNNImputer(), {"n_neighbors": neighbours, "weights": ["uniform", "distance"]}
@@ -158,15 +170,15 @@ def baseline_grid(method: str, X, *, n_trees: int = MISSFOREST_TREES) -> tuple[o
         inducing = sorted({min(m, n) for m in GPLVM_INDUCING})
         return GPLVMImputer(), {"n_latent": latent, "n_inducing": inducing}
     if method == "PPCA":
-        return PPCAImputer(), {"n_components": list(range(1, d))}
+        return PPCAImputer(**ours), {"n_components": list(range(1, d))}
     if method == "SoftImpute":
         filled = mean_fill(np.where(mask, X, 0.0), mask)
         top = float(np.linalg.svd(filled - filled.mean(axis=0), compute_uv=False)[0])
-        return SoftImputer(), {"lam": [float(f * top) for f in SOFT_IMPUTE_FRACTIONS]}
+        return SoftImputer(**ours), {"lam": [float(f * top) for f in SOFT_IMPUTE_FRACTIONS]}
     if method == "RPCA":
-        return RobustPCAImputer(), {"lam_factor": [0.5, 1.0, 2.0]}
+        return RobustPCAImputer(**ours), {"lam_factor": [0.5, 1.0, 2.0]}
     gammas = [float(g) for g in np.asarray(GAMMA_MULTIPLES) * median_gamma(np.where(mask, X, 0.0), mask)]
     if method == "PKPCA":
         components = [None] + [q for q in (2, 4, 8) if q < n]
-        return PKPCAImputer(), {"gamma": gammas, "n_components": components}
-    return RKPCAImputer(), {"gamma": gammas, "n_components": [q for q in (2, 4, 7, 10) if q < n]}
+        return PKPCAImputer(**ours), {"gamma": gammas, "n_components": components}
+    return RKPCAImputer(**ours), {"gamma": gammas, "n_components": [q for q in (2, 4, 7, 10) if q < n]}

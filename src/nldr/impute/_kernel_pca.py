@@ -56,8 +56,10 @@ def _complete_on(space: Subspace, W: np.ndarray, mask: np.ndarray) -> np.ndarray
 
 class _KernelBaseline(MaskedImputerBase):
     _min_samples = 3
+    _standardizes = True
     _parameter_constraints: dict = {
         **MaskedImputerBase._parameter_constraints,
+        "standardize": ["boolean"],
         "gamma": [Interval(Real, 0, np.inf, closed="neither"), None],
         "max_iter": [Interval(Integral, 1, None, closed="left")],
         "inner_max_iter": [Interval(Integral, 1, None, closed="left")],
@@ -66,6 +68,13 @@ class _KernelBaseline(MaskedImputerBase):
     #: the solver function and whether its subspace is centred
     _solver = None
     _centred = False
+
+    def _mean_fill_cause(self) -> str:
+        return (
+            "the data's units with standardize=False: gtol is absolute (per unit of X), so on large "
+            "entries the start already meets it, and gamma is in 1 / (units of X)^2; rescale X, "
+            "scale gtol and gamma with it, or standardize"
+        )
 
     def _solve(self, W, mask):
         self.gamma_ = _median_gamma(W, mask) if self.gamma is None else float(self.gamma)
@@ -90,6 +99,11 @@ class PKPCAImputer(_KernelBaseline):
     Parameters
     ----------
     missing_values : np.nan or float, default np.nan
+    standardize : bool, default True
+        Solve on the columns standardised by their observed entries' mean and standard deviation (a
+        constant column is only centred) and return the estimate in the data's units, so that the
+        completion is unit-free per column; the parameters in units of X are then in standardised
+        units. False solves on X as given (the paper's Table 2 setting, with its gamma in X's units).
     gamma : float > 0 or None, default None
         RBF inverse squared width, ``K_ij = exp(-gamma ||x_i - x_j||^2)``, in 1 / (units of X)^2 (the
         paper: 0.075 on oil flow). None: 1 / (median squared distance between the rows of the
@@ -112,6 +126,9 @@ class PKPCAImputer(_KernelBaseline):
     ----------
     gamma_ : float
     n_components_ : int, q of the final model
+    shift_, scale_ : arrays, shape (n_features,)
+        The standardisation (zeros and ones when ``standardize`` is False): the other fitted
+        attributes and ``result_`` are in the solved units, ``(X - shift_) / scale_``.
     result_ : nldr._baselines.PKPCAResult
     completed_ : array, shape (n_samples, n_features)
     subspace_ : nldr._preimage.Subspace, the fitted principal subspace (uncentred)
@@ -147,6 +164,7 @@ class PKPCAImputer(_KernelBaseline):
         self,
         missing_values=np.nan,
         *,
+        standardize=True,
         gamma=None,
         n_components=None,
         variance_fraction=0.95,
@@ -156,6 +174,7 @@ class PKPCAImputer(_KernelBaseline):
         gtol=1e-4,
     ):
         self.missing_values = missing_values
+        self.standardize = standardize
         self.gamma = gamma
         self.n_components = n_components
         self.variance_fraction = variance_fraction
@@ -192,6 +211,11 @@ class RKPCAImputer(_KernelBaseline):
     Parameters
     ----------
     missing_values : np.nan or float, default np.nan
+    standardize : bool, default True
+        Solve on the columns standardised by their observed entries' mean and standard deviation (a
+        constant column is only centred) and return the estimate in the data's units, so that the
+        completion is unit-free per column; the parameters in units of X are then in standardised
+        units. False solves on X as given (the paper's Table 2 setting, with its gamma in X's units).
     gamma : float > 0 or None, default None
         RBF inverse squared width in 1 / (units of X)^2 (the paper: 0.075 on oil flow). None:
         1 / (median squared distance between the rows of the mean-imputed X).
@@ -212,6 +236,9 @@ class RKPCAImputer(_KernelBaseline):
     ----------
     gamma_ : float
     n_components_ : int, q of the final subspace
+    shift_, scale_ : arrays, shape (n_features,)
+        The standardisation (zeros and ones when ``standardize`` is False): the other fitted
+        attributes and ``result_`` are in the solved units, ``(X - shift_) / scale_``.
     result_ : nldr._baselines.RKPCAResult
     completed_ : array, shape (n_samples, n_features)
     subspace_ : nldr._preimage.Subspace, the fitted principal subspace (centred)
@@ -245,6 +272,7 @@ class RKPCAImputer(_KernelBaseline):
         self,
         missing_values=np.nan,
         *,
+        standardize=True,
         gamma=None,
         n_components=7,
         weight=np.inf,
@@ -253,6 +281,7 @@ class RKPCAImputer(_KernelBaseline):
         gtol=1e-6,
     ):
         self.missing_values = missing_values
+        self.standardize = standardize
         self.gamma = gamma
         self.n_components = n_components
         self.weight = weight

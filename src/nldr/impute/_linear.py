@@ -69,6 +69,12 @@ class PPCAImputer(MaskedImputerBase):
     Parameters
     ----------
     missing_values : np.nan or float, default np.nan
+    standardize : bool, default True
+        Solve on the columns standardised by their observed entries' mean and standard deviation (a
+        constant column is only centred) and return the estimate in the data's units, so that the
+        completion is unit-free per column; the parameters in units of X are then in standardised
+        units. False solves on X as given (the paper's Table 2 setting: PPCA's isotropic noise is in
+        X's units).
     n_components : int or None, default None
         Latent dimension q, 1 <= q < n_features; None: min(10, n_features - 1) (on oil flow's 12
         columns q = 9-11 compare alike: docs/REPRODUCTION.md#table-2-baselines).
@@ -85,6 +91,9 @@ class PPCAImputer(MaskedImputerBase):
     mean_ : array, shape (n_features,)
     components_ : array, shape (n_features, n_components_), the loading matrix
     noise_variance_ : float
+    shift_, scale_ : arrays, shape (n_features,)
+        The standardisation (zeros and ones when ``standardize`` is False): the other fitted
+        attributes and ``result_`` are in the solved units, ``(X - shift_) / scale_``.
     result_ : nldr._baselines.PPCAResult
     completed_ : array, shape (n_samples, n_features)
     n_features_in_ : int
@@ -115,21 +124,30 @@ class PPCAImputer(MaskedImputerBase):
 
     _min_samples = 2
     _min_features = 2
+    _standardizes = True
 
     _parameter_constraints: dict = {
         **MaskedImputerBase._parameter_constraints,
+        "standardize": ["boolean"],
         "n_components": [Interval(Integral, 1, None, closed="left"), None],
         "max_iter": [Interval(Integral, 1, None, closed="left")],
         "tol": [Interval(Real, 0, np.inf, closed="left")],
         "accelerate": ["boolean"],
     }
 
-    def __init__(self, missing_values=np.nan, *, n_components=None, max_iter=5000, tol=1e-7, accelerate=True):
+    def __init__(
+        self, missing_values=np.nan, *, standardize=True, n_components=None, max_iter=5000, tol=1e-7,
+        accelerate=True,
+    ):
         self.missing_values = missing_values
+        self.standardize = standardize
         self.n_components = n_components
         self.max_iter = max_iter
         self.tol = tol
         self.accelerate = accelerate
+
+    def _mean_fill_cause(self) -> str:
+        return "the data's units with standardize=False (tol is per observed entry): rescale X or standardize"
 
     def _solve(self, W, mask):
         q = min(10, W.shape[1] - 1) if self.n_components is None else self.n_components
@@ -156,6 +174,11 @@ class SoftImputer(MaskedImputerBase):
     Parameters
     ----------
     missing_values : np.nan or float, default np.nan
+    standardize : bool, default True
+        Solve on the columns standardised by their observed entries' mean and standard deviation (a
+        constant column is only centred) and return the estimate in the data's units, so that the
+        completion is unit-free per column; the parameters in units of X are then in standardised
+        units. False solves on X as given.
     lam : float >= 0 or None, default None
         Weight of the nuclear norm, in the units of X. None: :data:`SOFT_IMPUTE_DEFAULT_FRACTION`
         times the largest singular value of the (centred) mean-imputed X, above which Z = 0.
@@ -173,6 +196,9 @@ class SoftImputer(MaskedImputerBase):
     column_means_ : array, shape (n_features,)
     basis_ : array, shape (n_features, rank_), Z's row space scaled by its singular values / sqrt(n)
     noise_variance_ : float, of the observed entries about the fit (robust estimate)
+    shift_, scale_ : arrays, shape (n_features,)
+        The standardisation (zeros and ones when ``standardize`` is False): the other fitted
+        attributes and ``result_`` are in the solved units, ``(X - shift_) / scale_``.
     result_ : nldr._baselines.SoftImputeResult
     completed_ : array, shape (n_samples, n_features)
     n_features_in_ : int
@@ -199,20 +225,32 @@ class SoftImputer(MaskedImputerBase):
     ((6, 3), False, True)
     """
 
+    _standardizes = True
+
     _parameter_constraints: dict = {
         **MaskedImputerBase._parameter_constraints,
+        "standardize": ["boolean"],
         "lam": [Interval(Real, 0, np.inf, closed="left"), None],
         "center": ["boolean"],
         "tol": [Interval(Real, 0, np.inf, closed="neither")],
         "max_iter": [Interval(Integral, 1, None, closed="left")],
     }
 
-    def __init__(self, missing_values=np.nan, *, lam=None, center=True, tol=1e-7, max_iter=5000):
+    def __init__(
+        self, missing_values=np.nan, *, standardize=True, lam=None, center=True, tol=1e-7, max_iter=5000
+    ):
         self.missing_values = missing_values
+        self.standardize = standardize
         self.lam = lam
         self.center = center
         self.tol = tol
         self.max_iter = max_iter
+
+    def _mean_fill_cause(self) -> str:
+        return (
+            "lam at or above the largest singular value of the centred matrix (Z = 0): lower lam, or "
+            "leave it None; with standardize=False, lam is in the units of X"
+        )
 
     def _solve(self, W, mask):
         lam = self.lam
@@ -248,6 +286,11 @@ class RobustPCAImputer(MaskedImputerBase):
     Parameters
     ----------
     missing_values : np.nan or float, default np.nan
+    standardize : bool, default True
+        Solve on the columns standardised by their observed entries' mean and standard deviation (a
+        constant column is only centred) and return the estimate in the data's units, so that the
+        completion is unit-free per column; the parameters in units of X are then in standardised
+        units. False solves on X as given.
     lam_factor : float > 0, default 1.0
         Multiple of Candes et al.'s weight of the l1 norm (dimensionless).
     center : bool, default True
@@ -267,6 +310,9 @@ class RobustPCAImputer(MaskedImputerBase):
     column_centre_ : array, shape (n_features,)
     basis_ : array, shape (n_features, rank_), L's row space scaled by its singular values / sqrt(n)
     noise_variance_ : float, of the observed entries about L (robust estimate)
+    shift_, scale_ : arrays, shape (n_features,)
+        The standardisation (zeros and ones when ``standardize`` is False): the other fitted
+        attributes and ``result_`` are in the solved units, ``(X - shift_) / scale_``.
     result_ : nldr._baselines.rpca.RPCAResult
     completed_ : array, shape (n_samples, n_features)
     n_features_in_ : int
@@ -292,8 +338,11 @@ class RobustPCAImputer(MaskedImputerBase):
     ((6, 3), False)
     """
 
+    _standardizes = True
+
     _parameter_constraints: dict = {
         **MaskedImputerBase._parameter_constraints,
+        "standardize": ["boolean"],
         "lam_factor": [Interval(Real, 0, np.inf, closed="neither")],
         "center": ["boolean"],
         "mu": [Interval(Real, 0, np.inf, closed="neither"), None],
@@ -302,9 +351,18 @@ class RobustPCAImputer(MaskedImputerBase):
     }
 
     def __init__(
-        self, missing_values=np.nan, *, lam_factor=1.0, center=True, mu=None, tol=1e-7, max_iter=10000
+        self,
+        missing_values=np.nan,
+        *,
+        standardize=True,
+        lam_factor=1.0,
+        center=True,
+        mu=None,
+        tol=1e-7,
+        max_iter=10000,
     ):
         self.missing_values = missing_values
+        self.standardize = standardize
         self.lam_factor = lam_factor
         self.center = center
         self.mu = mu

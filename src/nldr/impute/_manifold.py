@@ -42,8 +42,13 @@ class RobustKernelPCAImputer(MaskedImputerBase):
     Parameters
     ----------
     missing_values : np.nan or float, default np.nan
+    standardize : bool, default True
+        Learn and complete on the columns standardised by the training matrix's observed entries'
+        mean and standard deviation (a constant column is only centred) and return rows in the data's
+        units, so that the completion is unit-free per column; ``gamma`` and ``delta`` are then in
+        standardised units. False works on X as given.
     gamma : float > 0 or None, default None
-        RBF inverse squared width, 1 / (units of X)^2; None: 1 / n_features.
+        RBF inverse squared width, 1 / (units of the solved matrix)^2; None: 1 / n_features.
     tau : float > 0, default 1.0
         Trace-norm weight of the closed form (kernel units; larger tau, fewer components).
     center : bool, default True
@@ -81,7 +86,10 @@ class RobustKernelPCAImputer(MaskedImputerBase):
     Attributes
     ----------
     model_ : nldr.robust_kpca.RobustKernelPCA
-        The manifold, fitted on the complete training rows.
+        The manifold, fitted on the complete training rows (in the solved units).
+    shift_, scale_ : arrays, shape (n_features,)
+        The standardisation (zeros and ones when ``standardize`` is False): the solved units are
+        ``(X - shift_) / scale_``.
     gamma_ : float
     n_components_ : int
         Components of the learnt principal subspace.
@@ -124,11 +132,13 @@ class RobustKernelPCAImputer(MaskedImputerBase):
 
     _require_observed_columns = False
     _min_samples = 2
+    _standardizes = True
 
     def __init__(
         self,
         missing_values=np.nan,
         *,
+        standardize=True,
         gamma=None,
         tau=1.0,
         center=True,
@@ -142,6 +152,7 @@ class RobustKernelPCAImputer(MaskedImputerBase):
         warm_start=False,
     ):
         self.missing_values = missing_values
+        self.standardize = standardize
         self.gamma = gamma
         self.tau = tau
         self.center = center
@@ -156,6 +167,7 @@ class RobustKernelPCAImputer(MaskedImputerBase):
 
     _parameter_constraints: dict = {
         **MaskedImputerBase._parameter_constraints,
+        "standardize": ["boolean"],
         "gamma": [Interval(Real, 0, np.inf, closed="neither"), None],
         "tau": [Interval(Real, 0, np.inf, closed="neither")],
         "center": ["boolean"],
@@ -176,14 +188,15 @@ class RobustKernelPCAImputer(MaskedImputerBase):
             raise ValueError("delta (the Huber threshold, units of X) is required with loss='huber'")
 
     def _manifold_key(self) -> tuple:
-        return (self.gamma, self.tau, bool(self.center), self.eigensolver)
+        return (self.gamma, self.tau, bool(self.center), self.eigensolver, bool(self.standardize))
 
     @_fit_context(prefer_skip_nested_validation=True)
     def fit(self, X, y=None):
         """Learn the manifold from the rows of X (n, n_features) with every entry observed; y is
         ignored. Returns self."""
         W, mask = self._validated(X, reset=True)
-        rows = W[mask.all(axis=1)]
+        self._units(W, mask)
+        rows = self._standardised(W, mask)[mask.all(axis=1)]
         if rows.shape[0] < 2:
             raise ValueError(
                 f"X has {rows.shape[0]} fully observed row(s): RobustKernelPCAImputer learns its manifold "
@@ -231,7 +244,8 @@ class RobustKernelPCAImputer(MaskedImputerBase):
         check_is_fitted(self, "model_")
         self._validate_params()  # transform's knobs may have been set since fit
         W, mask = self._validated(X, reset=False)
-        return self._complete(W, mask)
+        Z = self._standardised(W, mask)
+        return self._in_data_units(self._complete(Z, mask), Z, W, mask)
 
     def _complete(self, W, mask):
         kw = {"rho": self.rho, "loss": self.loss, "delta": self.delta}

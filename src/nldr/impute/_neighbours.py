@@ -13,7 +13,8 @@ __all__ = ["NearestNeighbourImputer"]
 class NearestNeighbourImputer(MaskedImputerBase):
     """Each row copies its missing entries from the nearest fully observed row (the paper's "1-NN").
 
-    The distance is the squared Euclidean distance on the row's observed columns
+    The distance is the squared Euclidean distance on the row's observed columns (standardised by
+    default)
     (:func:`nldr._baselines.nearest_neighbour_impute`); ties go to the donor with the lowest index.
     ``transform`` draws new rows' donors from the fully observed rows seen in ``fit``. With no fully
     observed row there is no donor (the paper's "NA", oil flow at p = 0.5): ``fit`` raises a
@@ -23,10 +24,18 @@ class NearestNeighbourImputer(MaskedImputerBase):
     ----------
     missing_values : np.nan or float, default np.nan
         The marker of a missing entry (NaN is always missing too).
+    standardize : bool, default True
+        Solve on the columns standardised by their observed entries' mean and standard deviation (a
+        constant column is only centred) and return the estimate in the data's units, so that the
+        completion is unit-free per column; the parameters in units of X are then in standardised
+        units. False solves on X as given (the paper's Table 2 setting: distances in X's units).
 
     Attributes
     ----------
-    donors_ : array, shape (n_donors, n_features), the fully observed training rows
+    donors_ : array, shape (n_donors, n_features), the fully observed training rows (solved units)
+    shift_, scale_ : arrays, shape (n_features,)
+        The standardisation (zeros and ones when ``standardize`` is False): the other fitted
+        attributes and ``result_`` are in the solved units, ``(X - shift_) / scale_``.
     result_ : nldr._baselines.NearestNeighbourResult
     completed_ : array, shape (n_samples, n_features)
     n_features_in_ : int
@@ -52,9 +61,16 @@ class NearestNeighbourImputer(MaskedImputerBase):
     """
 
     _require_observed_columns = False
+    _standardizes = True
 
-    def __init__(self, missing_values=np.nan):
+    _parameter_constraints: dict = {
+        **MaskedImputerBase._parameter_constraints,
+        "standardize": ["boolean"],
+    }
+
+    def __init__(self, missing_values=np.nan, *, standardize=True):
         self.missing_values = missing_values
+        self.standardize = standardize
 
     def _solve(self, W, mask):
         result = nearest_neighbour_impute(np.where(mask, W, np.nan), mask)

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import warnings
 from numbers import Integral, Real
 
 import numpy as np
+from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils import check_random_state
 from sklearn.utils._param_validation import Interval, StrOptions
 
@@ -14,6 +16,7 @@ from .._preimage import Subspace, average_solutions, complete_from_starts, neare
 from ..data_terms import MaskedHuber, MaskedLeastSquares
 from ..model_selection import HoldoutSearch
 from ..regularizer import minimize_regularized
+from ..result import INACCURATE
 from ._base import MaskedImputerBase
 from ._defaults import (
     AUTO_EXACT_MAX_ROWS,
@@ -70,7 +73,10 @@ class KernelRegularizerImputer(MaskedImputerBase):
         "auto": the hold-out search's choice among :data:`TUNE_TAUS`. The search's folds hide
         :data:`TUNE_HOLDOUT` of the observed entries each (seeded by ``random_state``, 0 when None),
         its fold solves stop at looser tolerances and use the Nystroem kernel (100 landmarks) above
-        :data:`AUTO_EXACT_MAX_ROWS` rows; the smallest mean squared hold-out error (data units) wins.
+        :data:`AUTO_EXACT_MAX_ROWS` rows; the smallest mean squared hold-out error wins, in standardised
+        units when ``standardize`` (so that no column decides by its units). A choice whose hold-out
+        error is no better than the observed column means' on the same folds is reported:
+        ``result_.success`` False and a ConvergenceWarning.
     standardize : bool, default True
         Solve on columns centred and scaled by their observed entries' mean and standard deviation
         (a constant column is only centred), and return the estimate in the data's units. False
@@ -364,8 +370,10 @@ class KernelRegularizerImputer(MaskedImputerBase):
         hiding :data:`TUNE_HOLDOUT` of the observed entries (seeded by ``random_state``, 0 when None),
         the candidates of a fold solved as warm-started paths along tau from the smallest up (one
         cold solve per fold), looser tolerances, and the Nystroem kernel above
-        :data:`AUTO_EXACT_MAX_ROWS` rows; the smallest mean squared hold-out error wins. Returns the
-        chosen ``{"gamma", "tau"}`` and sets ``cv_results_``."""
+        :data:`AUTO_EXACT_MAX_ROWS` rows; the smallest mean squared hold-out error wins (in the units
+        of W: standardised when ``standardize``). Returns the chosen ``{"gamma", "tau"}`` and sets
+        ``cv_results_``, and ``_holdout_against_means`` to (the choice's error, the column means'
+        error on the same folds)."""
         seed = self._tune_seed()
         base = self.get_params()
         base.update(gamma=grid["gamma"][0], tau=grid["tau"][0], warm_start=False, verbose=False)
@@ -384,8 +392,11 @@ class KernelRegularizerImputer(MaskedImputerBase):
             refit=False,
             verbose=bool(self.verbose),
         )
-        search.fit(np.where(mask, W, np.nan))
+        with warnings.catch_warnings():  # a fold's mean fill is the search's business, scored as such
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            search.fit(np.where(mask, W, np.nan))
         self.cv_results_ = search.cv_results_
+        self._holdout_against_means = (float(search.best_score_), _mean_fill_holdout(W, mask, search.folds_))
         return dict(search.best_params_)
 
     def _transform_candidates(self) -> list[tuple[int, str]]:
@@ -404,9 +415,9 @@ class KernelRegularizerImputer(MaskedImputerBase):
         manifold (at ``gamma``, ``tau``, the tuning's fold solver) on the other rows, hides a share (the
         training matrix's missing share, at least :data:`TUNE_ROW_HIDDEN`) of the observed entries of
         :data:`TUNE_ROW_SHARE` of the rows, completes them with every candidate, and scores the mean
-        squared error on the hidden entries (data units); the smallest mean wins
-        (:class:`~nldr.model_selection.HoldoutSearch`, one fit per fold shared by the candidates).
-        Sets ``transform_results_`` (candidate -> mean error)."""
+        squared error on the hidden entries (units of W: standardised when ``standardize``); the
+        smallest mean wins (:class:`~nldr.model_selection.HoldoutSearch`, one fit per fold shared by
+        the candidates). Sets ``transform_results_`` (candidate -> mean error)."""
         candidates = self._transform_candidates()
         if len(candidates) == 1:
             return candidates[0]
@@ -416,7 +427,9 @@ class KernelRegularizerImputer(MaskedImputerBase):
         base.update(gamma=gamma, tau=tau, warm_start=False, verbose=False, **self._fold_solver(W.shape[0]))
         X, found = np.where(mask, W, np.nan), None
         if folds:
-            found = search_transform_knobs(type(self)(**base), X, candidates, folds, bool(self.verbose))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ConvergenceWarning)
+                found = search_transform_knobs(type(self)(**base), X, candidates, folds, bool(self.verbose))
         if found is None:  # nothing to hide, or a fold's manifold has no component
             return TUNE_TRANSFORM[1] if TUNE_TRANSFORM[1] in candidates else candidates[0]
         self.transform_results_, best = found
@@ -455,8 +468,9 @@ class KernelRegularizerImputer(MaskedImputerBase):
         median_rule = median_rule_gamma(mean_fill(Z, mask)) if gamma is None or _is_auto(gamma) else None
         grid = self._grid(gamma, tau, median_rule)
         tuned = (_is_auto(gamma) or _is_auto(tau)) and W.shape[0] >= TUNE_MIN_ROWS
+        self.__dict__.pop("_holdout_against_means", None)
         if tuned:
-            chosen = self._tune(W, mask, grid)
+            chosen = self._tune(Z, mask, grid)  # scored in the solved (standardised) units
         else:
             self.__dict__.pop("cv_results_", None)
             chosen = {
@@ -479,7 +493,34 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self._space = None  # built by the first transform of a new row
         self._solved_key = self._solve_key()
         X_hat = S if not self.standardize else S * self.scale_ + self.mean_
+        self._report_holdout(result)
         return X_hat, result
+
+    def _mean_fill_cause(self) -> str:
+        return (
+            f"tau (= {self.tau_:g}) far too large, or the data's units with standardize=False (tau, rho0 "
+            "and gtol are in the solved matrix's units: for data scaled by s, scale tau and rho0 by s^2 "
+            "and gtol by s, or standardize)"
+        )
+
+    def _report_holdout(self, result) -> None:
+        """A tuned choice whose hold-out error is no better than the column means' says so."""
+        errors = getattr(self, "_holdout_against_means", None)
+        if errors is None or errors[0] < errors[1]:
+            return
+        result.status = INACCURATE
+        result.message = (
+            f"{result.message}; the chosen gamma and tau predict the hidden entries no better than the "
+            f"column means (hold-out error {errors[0]:.4g} against {errors[1]:.4g})"
+        )
+        warnings.warn(
+            f"KernelRegularizerImputer: the hold-out search's best (gamma = {self.gamma_:g}, tau = "
+            f"{self.tau_:g}) predicts hidden entries no better than the observed column means (mean "
+            f"squared error {errors[0]:.4g} against {errors[1]:.4g}); the columns may carry no shared "
+            "structure, or the data's units dominate (use standardize=True)",
+            ConvergenceWarning,
+            stacklevel=4,
+        )
 
     def _solve_key(self) -> tuple:
         """The parameters the solve depends on (all but transform's knobs and verbose), comparable."""
@@ -532,7 +573,9 @@ class KernelRegularizerImputer(MaskedImputerBase):
         Z = np.where(mask, (W - self.mean_) / self.scale_, 0.0)
         S = self.manifold_rows_
         if not hasattr(self, "n_neighbors_"):  # "auto": chosen once, before the first new row
-            k, starts = self._tune_transform(*self._training, self.gamma_, self.tau_)
+            W_fit, mask_fit = self._training
+            Z_fit = np.where(mask_fit, (W_fit - self.mean_) / self.scale_, 0.0)  # scored in solved units
+            k, starts = self._tune_transform(Z_fit, mask_fit, self.gamma_, self.tau_)
             self.n_neighbors_, self.starts_ = int(k), str(starts)
         n_neighbors, starts = self.n_neighbors_, self.starts_
         nearest, distance = nearest_rows(S, Z, mask, min(n_neighbors, S.shape[0]))
@@ -544,6 +587,18 @@ class KernelRegularizerImputer(MaskedImputerBase):
         X_hat = complete_from_starts(self._subspace(), Z, mask, X0)
         X_hat = X_hat[:, 0] if starts == "mean" else average_solutions(X_hat, distance, self.weights)
         return np.where(mask, W, X_hat * self.scale_ + self.mean_)
+
+
+def _mean_fill_holdout(W: np.ndarray, mask: np.ndarray, folds) -> float:
+    """The column means' mean squared error on each fold's hidden entries (means of the entries the
+    fold keeps), averaged over the folds: the score a mean fill gets in the search (units of W^2)."""
+    errors = []
+    for hidden in folds:
+        keep = mask & ~hidden
+        means = np.where(keep, W, 0.0).sum(axis=0) / np.maximum(keep.sum(axis=0), 1)
+        diff = (W - means[None, :])[hidden]
+        errors.append(float(diff @ diff) / diff.size)
+    return float(np.mean(errors))
 
 
 def _is_auto(value) -> bool:
