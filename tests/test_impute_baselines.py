@@ -59,7 +59,10 @@ CASES = {
     ),
     "1-NN": (NearestNeighbourImputer(), lambda W, m: nearest_neighbour_impute(W, m).x),
     "SoftImpute": (SoftImputer(lam=0.5), lambda W, m: soft_impute(W, m, lam=0.5).x),
-    "RPCA": (RobustPCAImputer(lam_factor=2.0), lambda W, m: rpca_impute(W, m, lam_factor=2.0).x),
+    "RPCA": (
+        RobustPCAImputer(lam_factor=2.0, denoise=True),  # the solver's L on every entry
+        lambda W, m: rpca_impute(W, m, lam_factor=2.0).x,
+    ),
     "PPCA solver knobs": (
         PPCAImputer(n_components=2, max_iter=3, accelerate=False),
         lambda W, m: ppca_impute(W, m, 2, max_iter=3, accelerate=False).x,
