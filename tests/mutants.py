@@ -176,6 +176,56 @@ MUTANTS = [
         "if True:",
         ("tests/test_reliability_units.py::test_a_search_no_better_than_the_column_means_says_so",),
     ),
+    Mutant(
+        "imputer: fit_transform returns the denoised estimate",
+        "src/nldr/impute/_base.py",
+        "        if not self._denoises():\n            X_hat = np.where(mask, W, X_hat)\n",
+        "",
+        ("tests/test_reliability_consistency.py",),
+    ),
+    Mutant(
+        "imputer: copies of a training row keep their own estimates",
+        "src/nldr/impute/_base.py",
+        "    if not copies:\n        return X_hat",
+        "    if True:\n        return X_hat",
+        ("tests/test_reliability_consistency.py",),
+    ),
+    Mutant(
+        "regularizer: transform denoises new rows without the option",
+        "src/nldr/impute/_regularizer.py",
+        "        return X_hat if self.denoise else np.where(mask, W, X_hat)",
+        "        return X_hat",
+        ("tests/test_reliability_consistency.py",),
+    ),
+    Mutant(
+        "robust PCA: transform ignores denoise",
+        "src/nldr/impute/_linear.py",
+        "robust=True, denoise=self.denoise",
+        "robust=True, denoise=False",
+        ("tests/test_reliability_consistency.py",),
+    ),
+    Mutant(
+        "regularizer: the search sees the rows in the order given",
+        "src/nldr/impute/_regularizer.py",
+        "search.fit(np.where(mask, W, np.nan)[order])",
+        "search.fit(np.where(mask, W, np.nan))",
+        ("tests/test_reliability_consistency.py",),
+    ),
+    Mutant(
+        "regularizer: the search's folds follow random_state",
+        "src/nldr/impute/_regularizer.py",
+        "order given either).\"\"\"\n        return 0",
+        "order given either).\"\"\"\n"
+        "        return int(check_random_state(self.random_state).randint(np.iinfo(np.int32).max))",
+        ("tests/test_reliability_consistency.py",),
+    ),
+    Mutant(
+        "regularizer: a long default fit says nothing",
+        "src/nldr/impute/_defaults.py",
+        "    if not tuned or n < LONG_FIT_ROWS:",
+        "    if True:",
+        ("tests/test_reliability_consistency.py",),
+    ),
 ]
 
 

@@ -61,7 +61,7 @@ CASES = {
     "1-NN": (NearestNeighbourImputer(standardize=False), lambda W, m: nearest_neighbour_impute(W, m).x),
     "SoftImpute": (SoftImputer(standardize=False, lam=0.5), lambda W, m: soft_impute(W, m, lam=0.5).x),
     "RPCA": (
-        RobustPCAImputer(standardize=False, lam_factor=2.0),
+        RobustPCAImputer(standardize=False, lam_factor=2.0, denoise=True),  # the solver's L on every entry
         lambda W, m: rpca_impute(W, m, lam_factor=2.0).x,
     ),
     "PPCA solver knobs": (

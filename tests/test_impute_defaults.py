@@ -8,6 +8,7 @@ from test_impute import hide, surface
 from nldr._baselines import mean_impute
 from nldr.impute import KernelRegularizerImputer
 from nldr.impute import _regularizer as module
+from nldr.impute._base import canonical_row_order
 from nldr.model_selection import holdout_folds
 
 
@@ -49,6 +50,8 @@ def test_the_tuning_scores_are_the_hold_out_errors_of_the_documented_folds(probl
     search runs on the matrix standardised by the estimator's mean_ and scale_)."""
     _, W, mask = problem
     est = KernelRegularizerImputer(random_state=None).fit(W)
+    order = canonical_row_order(W, mask)  # the folds index the rows sorted by their content
+    W, mask = W[order], mask[order]
     Z = (W - est.mean_) / est.scale_
     folds = holdout_folds(mask, module.TUNE_FOLDS, 0, holdout=module.TUNE_HOLDOUT)
     first = est.cv_results_["params"][0]
@@ -167,8 +170,11 @@ def test_the_row_fold_scores_are_the_brute_force_errors_and_cost_one_solve_per_f
     est.transform(X_new)
     assert len(solves) == module.TUNE_FOLDS  # the candidates of a fold share its one fit
     candidates = module.TUNE_TRANSFORM
-    Z = np.where(mask, (np.nan_to_num(W) - est.mean_) / est.scale_, 0.0)  # the folds score standardised units
-    expected = brute_force_row_fold_errors(Z, mask, est.gamma_, est.tau_, candidates)
+    order = canonical_row_order(W, mask)  # the row folds index the rows sorted by their content
+    W_sorted, mask_sorted = np.nan_to_num(W)[order], mask[order]
+    # the folds score standardised units
+    Z = np.where(mask_sorted, (W_sorted - est.mean_) / est.scale_, 0.0)
+    expected = brute_force_row_fold_errors(Z, mask_sorted, est.gamma_, est.tau_, candidates)
     assert list(est.transform_results_) == list(module.TUNE_TRANSFORM)
     for candidate, error in expected.items():
         assert est.transform_results_[candidate] == pytest.approx(error, rel=1e-10)

@@ -140,7 +140,7 @@ def test_the_regularizer_imputer_s_fold_errors_are_the_hand_computed_ones_and_th
     _, W, mask = denoising_problem(n=25, d=5)
     W = np.where(mask, W, np.nan)
     gamma, taus = median_gamma(W), [0.1, 1.0]
-    ours = KernelRegularizerImputer(standardize=False, gamma=gamma, method="exact")
+    ours = KernelRegularizerImputer(standardize=False, gamma=gamma, method="exact", denoise=True)  # S
     loose = {"tol": 1e-7, "gtol": 1e-4}
     search = HoldoutSearch(ours, {"tau": taus}, n_folds=2, fold_params=loose).fit(W)
     folds = holdout_folds(mask, 2, random_state=0)
@@ -163,7 +163,7 @@ def test_the_regularizer_imputer_s_tau_path_is_the_hand_chain_of_warm_last_stage
     _, W, mask = denoising_problem(n=25, d=5)
     W = np.where(mask, W, np.nan)
     g1, g2 = 0.5 * median_gamma(W, mask), median_gamma(W, mask)
-    ours = KernelRegularizerImputer(standardize=False, method="exact")
+    ours = KernelRegularizerImputer(standardize=False, method="exact", denoise=True)  # S
     search = HoldoutSearch(
         ours, {"gamma": [g1, g2], "tau": [0.1, 1.0]}, n_folds=2, holdout=0.1, path="tau",
         fold_params={"tol": 1e-7, "gtol": 1e-4},
@@ -196,7 +196,7 @@ def test_a_warm_regularizer_imputer_refit_on_another_shape_or_standardised_start
     imputer = KernelRegularizerImputer(tau=0.1, warm_start=True).fit(W)  # no previous fit: cold
     cold = KernelRegularizerImputer(tau=0.1).fit(W)
     np.testing.assert_array_equal(imputer.completed_, cold.completed_)
-    previous = imputer.completed_.copy()
+    previous = imputer.manifold_rows_ * imputer.scale_ + imputer.mean_  # its S, in the data's units
     imputer.set_params(tau=1.0).fit(W)
     Z = (previous - imputer.mean_) / imputer.scale_
     gamma = imputer.gamma_

@@ -202,9 +202,13 @@ def test_peer_grids_and_selection_with_and_without_a_knob():
     assert baseline_grid("missForest", W, n_trees=10)[0].estimator.n_estimators == 10
     with pytest.raises(ValueError, match="n_trees"):
         baseline_grid("missForest", W, n_trees=0)
-    estimator, grid = baseline_grid("SoftImpute", W)
-    # the largest lam is 0.3 of the value at which the completion is mean imputation
+    # the largest lam is 0.3 of the value at which the completion is mean imputation, in the units
+    # the imputer solves in: the columns standardised by their observed entries (default), or X's own
     mu = np.array([W[mask[:, j], j].mean() for j in range(W.shape[1])])
+    sd = np.array([W[mask[:, j], j].std() for j in range(W.shape[1])])
+    top = np.linalg.svd((np.where(mask, W, mu) - mu) / sd, compute_uv=False)[0]
+    assert max(baseline_grid("SoftImpute", W)[1]["lam"]) == pytest.approx(0.3 * top, rel=1e-10)
+    estimator, grid = baseline_grid("SoftImpute", W, standardize=False)
     top = np.linalg.svd(np.where(mask, W, mu) - mu, compute_uv=False)[0]
     assert max(grid["lam"]) == pytest.approx(0.3 * top, rel=1e-12)
     search = HoldoutSearch(estimator, grid, n_folds=3).fit(W)

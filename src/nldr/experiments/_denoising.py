@@ -177,7 +177,7 @@ class Denoising(Experiment):
         if n_sub > 0:
             # Ours: transductive on the noisy test images; the pixel parts are the search's folds
             schedule = dict(ours["schedule"])
-            ours = KernelRegularizerImputer(standardize=False, method="exact", **schedule)
+            ours = KernelRegularizerImputer(standardize=False, method="exact", **schedule, denoise=True)
             grid = {"gamma": list(cv["ours_gammas"]), "tau": list(cv["ours_tau"])}
             search = HoldoutSearch(ours, grid, folds=parts_sub, scoring=_sum_squared)
             record("Ours", search.fit_transform(Y_test[:n_sub]), search.best_params_)

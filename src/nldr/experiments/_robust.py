@@ -173,7 +173,8 @@ class Robust(Experiment):
             candidates = {"gamma": [float(g) for g in gammas], "tau": [float(t) for t in taus]}
             # the regularizer in the data's units with the block's schedule; the fold solves stop
             # earlier (they only rank), each tau path from the smallest tau up
-            ours = KernelRegularizerImputer(standardize=False, method="exact", **schedule)
+            # denoise: the estimate of every entry (the outliers among the observed ones corrected)
+            ours = KernelRegularizerImputer(standardize=False, method="exact", **schedule, denoise=True)
             search = {
                 "n_folds": settings["n_folds"],
                 "random_state": seed,
@@ -190,7 +191,7 @@ class Robust(Experiment):
             # delta per fit from the least-squares fit's residuals at the same tau and gamma
             delta = RobustScaleDelta(settings["delta_factor"])
             huber = KernelRegularizerImputer(
-                standardize=False, method="exact", **schedule, loss="huber"
+                standardize=False, method="exact", **schedule, loss="huber", denoise=True
             )
             huber = HoldoutSearch(huber, candidates, path="tau", derive=delta, fold_params=folds, **search)
             X_hat = huber.fit_transform(W)
@@ -198,6 +199,7 @@ class Robust(Experiment):
             record("Ours (Huber)", X_hat, time.perf_counter() - start, _words(chosen))
             start = time.perf_counter()
             rpca, _ = baseline_grid("RPCA", W, standardize=False)  # the data's units, as Ours here
+            rpca.set_params(denoise=True)  # its low-rank L on every entry, as the regularizer's S
             grid = {"lam_factor": list(settings["rpca_lam_factors"])}
             rpca = HoldoutSearch(rpca, grid, scoring="absolute", **cv)
             record("RPCA", rpca.fit_transform(W), time.perf_counter() - start, repr(rpca.best_params_))

@@ -3,7 +3,10 @@
 Each estimator has ``fit``, ``transform`` and ``fit_transform``, works in a ``Pipeline``, with
 ``clone`` and ``GridSearchCV``, and passes scikit-learn's ``check_estimator``. ``fit_transform(X)``
 is the method's (transductive) answer on X; ``transform`` completes rows never seen against the
-model learnt in ``fit`` (rows seen in ``fit`` get their fitted estimate). The solvers stay functions
+model learnt in ``fit`` (rows seen in ``fit`` get their fitted estimate; identical rows share one).
+Every estimator keeps the observed entries, as scikit-learn's imputers do; the two that also estimate
+them (:class:`RobustPCAImputer`, :class:`KernelRegularizerImputer`) return that estimate of every
+entry, from ``fit_transform`` and ``transform`` alike, with ``denoise=True``. The solvers stay functions
 underneath (:mod:`nldr.regularizer`, :mod:`nldr._baselines`); each estimator keeps its solver's
 result object as ``result_`` where there is one.
 

@@ -19,11 +19,23 @@ that tie two of them together adds those to ``_validate_params`` in a few lines 
 ``fit`` checks them first and :class:`~nldr.model_selection.HoldoutSearch` checks every candidate
 before any fit.
 
+Observed entries. An imputer keeps them: ``fit_transform`` and ``transform`` return the observed
+entries of X unchanged and estimate the missing ones, scikit-learn's convention, so that training
+and test rows of a ``Pipeline`` are the same kind of thing. A method whose solve also moves the
+observed entries (a denoiser: :class:`~nldr.impute.RobustPCAImputer`'s low-rank L, the
+:class:`~nldr.impute.KernelRegularizerImputer`'s S) has a ``denoise`` parameter, default False;
+with ``denoise=True`` both ``fit_transform`` and ``transform`` return the denoised estimate of every
+entry. The base class applies the rule to what ``_solve`` returns (``_denoises`` says whether the
+estimator's output is the denoised one).
+
 Rows seen in ``fit``. A transductive method's answer for a row depends on every other row, so a
 training row completed on its own would not be the row ``fit_transform`` returned. ``transform``
 therefore returns the fitted estimate for any row identical to a training row (same values, same
 missing entries), so that ``fit(X).transform(X)`` equals ``fit_transform(X)`` as scikit-learn's
-contract says, and completes the other rows with ``_complete``.
+contract says, and completes the other rows with ``_complete``. Identical training rows (same values,
+same missing entries) are one row to the method: they share one estimate, the mean of the solve's
+estimates of the copies (a solve may split copies apart within its tolerance), so ``fit_transform``
+gives every copy the same row and ``transform`` returns that row for each of them.
 
 Units. A subclass that sets ``_standardizes`` takes a ``standardize`` parameter (default True): the
 base class then hands ``_solve`` and ``_complete`` the columns standardised by their observed
@@ -60,7 +72,7 @@ from .._threads import blas_threads_for
 from .._validation import check_masked_matrix, check_squares_representable
 from ..result import INACCURATE
 
-__all__ = ["MaskedImputerBase", "MEAN_FILL_RTOL"]
+__all__ = ["MaskedImputerBase", "MEAN_FILL_RTOL", "canonical_row_order"]
 
 #: An estimate's missing entries within this multiple of their column's standard deviation of the
 #: column's observed mean are a mean fill. Rounding of the (un)standardisation is ~1e-16 relative; a
@@ -160,18 +172,27 @@ class MaskedImputerBase(OneToOneFeatureMixin, TransformerMixin, BaseEstimator):
         check_squares_representable(W, mask, "X")
         return W, mask
 
+    def _denoises(self) -> bool:
+        """Whether the output is the denoised estimate of every entry (``denoise=True``), not the
+        observed entries kept."""
+        return bool(getattr(self, "denoise", False))
+
     def _fit(self, X):
         W, mask = self._validated(X, reset=True)
         self._units(W, mask)
         Z = self._standardised(W, mask)
         with blas_threads_for(W.shape[0]):
             Z_hat, result = self._solve(Z, mask)
-        self.completed_ = np.asarray(self._in_data_units(np.asarray(Z_hat, dtype=np.float64), Z, W, mask))
+        X_hat = np.asarray(self._in_data_units(np.asarray(Z_hat, dtype=np.float64), Z, W, mask))
+        if not self._denoises():
+            X_hat = np.where(mask, W, X_hat)
+        keys = _row_keys(np.where(mask, W, np.nan))
+        self.completed_ = _share_estimates(X_hat, keys)
         self.result_ = result
         self._check_moved(W, mask)
         if hasattr(result, "nit"):
             self.n_iter_ = int(result.nit)
-        self._seen = {key: i for i, key in reversed(list(enumerate(_row_keys(np.where(mask, W, np.nan)))))}
+        self._seen = {key: i for i, key in reversed(list(enumerate(keys)))}
         return self.completed_
 
     @_fit_context(prefer_skip_nested_validation=True)
@@ -245,6 +266,33 @@ def _standardisation(W: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.nd
     if seen.any():
         shift[seen], scale[seen] = observed_standardisation(W[:, seen], mask[:, seen])
     return shift, scale
+
+
+def canonical_row_order(W: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """The permutation (n,) that sorts the rows of W (n, d) by their content: lexicographically by
+    their observed values, a missing entry after every value. Rows in any order sort to the same
+    matrix (identical rows are interchangeable), so what is computed on ``W[order]`` does not depend
+    on the order the rows came in."""
+    Y = np.where(mask, W, 0.0)
+    Y[Y == 0.0] = 0.0  # -0.0 and 0.0 are the same value
+    keys = [Y[:, j] for j in range(W.shape[1])] + [~mask[:, j] for j in range(W.shape[1])]
+    columns = [k for pair in zip(keys[W.shape[1] :], keys[: W.shape[1]], strict=True) for k in pair]
+    return np.lexsort(columns[::-1])
+
+
+def _share_estimates(X_hat: np.ndarray, keys: list[bytes]) -> np.ndarray:
+    """X_hat (n, d) with every group of identical rows (equal ``keys``) given the mean of the group's
+    estimates, summed in row order; X_hat itself (not a copy) when no two rows are identical."""
+    groups: dict[bytes, list[int]] = {}
+    for i, key in enumerate(keys):
+        groups.setdefault(key, []).append(i)
+    copies = [rows for rows in groups.values() if len(rows) > 1]
+    if not copies:
+        return X_hat
+    out = X_hat.copy()
+    for rows in copies:
+        out[rows] = X_hat[rows].mean(axis=0)
+    return out
 
 
 def _is_nan_marker(value) -> bool:

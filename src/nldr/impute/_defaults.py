@@ -35,6 +35,8 @@ __all__ = [
     "TUNE_LANDMARKS",
     "TUNE_STOP_FACTOR",
     "NYSTROEM_OPTIONS",
+    "LONG_FIT_ROWS",
+    "long_fit_message",
 ]
 
 #: data losses of ``loss``
@@ -83,6 +85,30 @@ TUNE_LANDMARKS = 100
 #: a fold's tau path stops once its error exceeds this factor times the path's best so far
 TUNE_STOP_FACTOR = 1.5
 NYSTROEM_OPTIONS = frozenset(f.name for f in dataclasses.fields(NystroemOptions))
+#: from this many rows a fit that runs the "auto" search warns about its cost before it starts
+#: (:class:`~nldr.regularizer.LongSolveWarning`): the search's fold solves and the fit together take
+#: about half a CPU minute here and grow with the rows (measured: docs/PERFORMANCE.md#long-default-fits)
+LONG_FIT_ROWS = 1000
+#: CPU seconds of a default fit (search and solve) per 1000 rows, scaled linearly for the warning's
+#: estimate (measured: docs/PERFORMANCE.md#long-default-fits)
+_SEARCH_SECONDS_PER_1000_ROWS = 25.0
+
+
+def long_fit_message(n: int, *, tuned: bool) -> str | None:
+    """The cost warning of a fit on n rows that runs the "auto" search (``tuned``), or None when the
+    fit is expected to be short (below :data:`LONG_FIT_ROWS` rows) or runs no search (a long exact
+    solve has :func:`~nldr.regularizer.minimize_regularized`'s own warning)."""
+    if not tuned or n < LONG_FIT_ROWS:
+        return None
+    minutes = _SEARCH_SECONDS_PER_1000_ROWS * n / 1000.0 / 60.0
+    candidates = len(TUNE_GAMMA_MULTIPLES) * len(TUNE_TAUS)
+    return (
+        f"KernelRegularizerImputer: {n} rows with gamma or tau 'auto': the hold-out search ({candidates} "
+        f"candidates x {TUNE_FOLDS} folds) and the fit take about {minutes:.0f} CPU minute(s) or more, "
+        "growing with the rows (docs/PERFORMANCE.md#long-default-fits). verbose=True prints each fold "
+        "and penalty stage as it ends; fixed gamma and tau (e.g. gamma_ and tau_ of a fit on a "
+        "subsample of the rows) skip the search"
+    )
 
 
 def median_rule_gamma(S: np.ndarray) -> float:

@@ -34,19 +34,22 @@ def _row_space(L: np.ndarray, residual: np.ndarray, rank: int) -> tuple[np.ndarr
     return basis, max(noise, 1e-12 * float(np.mean(sv[:rank] ** 2) / L.shape[0]) if rank else 1e-12)
 
 
-def _fit_on_basis(W, mask, centre, basis, noise, *, robust: bool) -> np.ndarray:
+def _fit_on_basis(W, mask, centre, basis, noise, *, robust: bool, denoise: bool = False) -> np.ndarray:
     """Rows (m, d) completed on centre + span(basis (d, r)). A row's coefficients a are the
     posterior mean under a ~ N(0, I) and Gaussian noise of variance ``noise`` on its observed
     entries, (B_o^T B_o + noise I)^-1 B_o^T (w_o - centre_o); with ``robust`` the data term is
     reweighted to least absolute deviations, so a gross error among the observed entries does not
-    drag the fit. Observed entries are kept."""
+    drag the fit. Observed entries are kept; with ``denoise`` every entry is the fit's,
+    centre + B a."""
     out = np.where(mask, W, centre)
+    if denoise:
+        out = np.broadcast_to(centre, W.shape).copy()
     r = basis.shape[1]
     if r == 0:
         return out
     for i in range(W.shape[0]):
         o = mask[i]
-        if not o.any() or o.all():
+        if not o.any() or (o.all() and not denoise):
             continue
         A, b = basis[o], W[i, o] - centre[o]
         weights = np.ones(b.size)
@@ -55,7 +58,8 @@ def _fit_on_basis(W, mask, centre, basis, noise, *, robust: bool) -> np.ndarray:
             coef = np.linalg.solve(A.T @ Aw + noise * np.eye(r), Aw.T @ b)
             scale = np.sqrt(noise)
             weights = scale / np.maximum(np.abs(b - A @ coef), scale)  # Huber-like IRLS towards l1
-        out[i, ~o] = centre[~o] + basis[~o] @ coef
+        fitted = ~o if not denoise else slice(None)
+        out[i, fitted] = centre[fitted] + basis[fitted] @ coef
     return out
 
 
@@ -277,11 +281,14 @@ class RobustPCAImputer(MaskedImputerBase):
     """Linear Robust PCA by principal component pursuit, with missing entries (Candes et al. 2011).
 
     ``fit`` runs :func:`nldr._baselines.rpca.rpca_impute`: min ||L||_* + lam ||S||_1 with L + S = X on
-    the observed entries, ``lam = lam_factor / sqrt(max(n, d) * share observed)``; the estimate is
-    the low-rank L (plus the column medians), so observed entries with gross errors are corrected
-    too. ``transform`` fits each new row's observed entries on the row space of L (as
-    :class:`SoftImputer`, the data term reweighted towards least absolute deviations, robust to a gross
-    error among them), fills the missing ones from that fit and keeps the observed ones.
+    the observed entries, ``lam = lam_factor / sqrt(max(n, d) * share observed)``; the missing
+    entries of a training row are its low-rank L (plus the column medians). ``transform`` fits each
+    new row's observed entries on the row space of L (as :class:`SoftImputer`, the data term
+    reweighted towards least absolute deviations, robust to a gross error among them) and fills the
+    missing ones from that fit. Both keep the observed entries, as an imputer does; with
+    ``denoise=True`` both return the low-rank estimate of every entry instead (training rows: L plus
+    the medians; new rows: their fit on L's row space), so observed entries with gross errors are
+    corrected too.
 
     Parameters
     ----------
@@ -303,6 +310,9 @@ class RobustPCAImputer(MaskedImputerBase):
         entries (dimensionless).
     max_iter : int >= 1, default 10000
         ADMM iterations at most.
+    denoise : bool, default False
+        Return the low-rank estimate of the observed entries too (a denoiser), from ``fit_transform``
+        and ``transform`` alike; False keeps them (an imputer).
 
     Attributes
     ----------
@@ -336,6 +346,12 @@ class RobustPCAImputer(MaskedImputerBase):
     >>> X_hat = RobustPCAImputer().fit_transform(X)
     >>> X_hat.shape, bool(np.isnan(X_hat).any())
     ((6, 3), False)
+    >>> observed = ~np.isnan(X)
+    >>> bool(np.array_equal(X_hat[observed], X[observed]))  # an imputer keeps them
+    True
+    >>> L = RobustPCAImputer(denoise=True).fit_transform(X)  # the low-rank estimate of every entry
+    >>> bool(np.array_equal(L[observed], X[observed]))
+    False
     """
 
     _standardizes = True
@@ -348,6 +364,7 @@ class RobustPCAImputer(MaskedImputerBase):
         "mu": [Interval(Real, 0, np.inf, closed="neither"), None],
         "tol": [Interval(Real, 0, np.inf, closed="neither")],
         "max_iter": [Interval(Integral, 1, None, closed="left")],
+        "denoise": ["boolean"],
     }
 
     def __init__(
@@ -360,6 +377,7 @@ class RobustPCAImputer(MaskedImputerBase):
         mu=None,
         tol=1e-7,
         max_iter=10000,
+        denoise=False,
     ):
         self.missing_values = missing_values
         self.standardize = standardize
@@ -368,6 +386,7 @@ class RobustPCAImputer(MaskedImputerBase):
         self.mu = mu
         self.tol = tol
         self.max_iter = max_iter
+        self.denoise = denoise
 
     def _solve(self, W, mask):
         solver = {"mu": self.mu, "tol": self.tol, "max_iter": self.max_iter}
@@ -381,4 +400,6 @@ class RobustPCAImputer(MaskedImputerBase):
         return result.x, result
 
     def _complete(self, W, mask):
-        return _fit_on_basis(W, mask, self.column_centre_, self.basis_, self.noise_variance_, robust=True)
+        return _fit_on_basis(
+            W, mask, self.column_centre_, self.basis_, self.noise_variance_, robust=True, denoise=self.denoise
+        )

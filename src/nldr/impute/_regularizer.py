@@ -15,9 +15,10 @@ from .._options import last_stage_only, solver_options
 from .._preimage import Subspace, average_solutions, complete_from_starts, nearest_rows
 from ..data_terms import MaskedHuber, MaskedLeastSquares
 from ..model_selection import HoldoutSearch
-from ..regularizer import minimize_regularized
+from ..regularizer import LongSolveWarning, minimize_regularized
 from ..result import INACCURATE
-from ._base import MaskedImputerBase
+from . import _defaults
+from ._base import MaskedImputerBase, canonical_row_order
 from ._defaults import (
     AUTO_EXACT_MAX_ROWS,
     AUTO_LANDMARKS,
@@ -52,9 +53,11 @@ class KernelRegularizerImputer(MaskedImputerBase):
 
     ``fit_transform(X)`` completes X by solving the paper's joint problem over the completed matrix
     and a kernel factor; ``fit`` keeps the learnt manifold, and ``transform`` completes new rows
-    against it. With no arguments this is the recommended configuration (tau and the width chosen by
-    hold-out on the observed entries inside ``fit``); the paper's Table 2 is
-    ``KernelRegularizerImputer(standardize=False, gamma=0.075, tau=0.1, method="exact")``. The user
+    against it. Both keep the observed entries and fill the missing ones (an imputer);
+    ``denoise=True`` returns the solve's estimate of every entry instead (a denoiser). With no
+    arguments this is the recommended configuration (tau and the width chosen by hold-out on the
+    observed entries inside ``fit``); the paper's Table 2 is ``KernelRegularizerImputer(
+    standardize=False, gamma=0.075, tau=0.1, method="exact", denoise=True)``. The user
     guide (docs/user_guide.md) explains the problem, the defaults and the options.
 
     Parameters
@@ -71,7 +74,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         Weight of the trace norm of C (the feature-space data's nuclear norm), in the data term's
         units (squared units of the solved matrix). Larger tau: a lower-dimensional manifold.
         "auto": the hold-out search's choice among :data:`TUNE_TAUS`. The search's folds hide
-        :data:`TUNE_HOLDOUT` of the observed entries each (seeded by ``random_state``, 0 when None),
+        :data:`TUNE_HOLDOUT` of the observed entries each (drawn from seed 0, rows sorted by content),
         its fold solves stop at looser tolerances and use the Nystroem kernel (100 landmarks) above
         :data:`AUTO_EXACT_MAX_ROWS` rows; the smallest mean squared hold-out error wins, in standardised
         units when ``standardize`` (so that no column decides by its units). A choice whose hold-out
@@ -142,8 +145,11 @@ class KernelRegularizerImputer(MaskedImputerBase):
     weights : {"uniform", "distance"}, default "uniform"
         ``transform`` with ``starts="each"``: how the local minima are averaged.
     random_state : int, RandomState or None, default 0
-        Seeds the landmark draw of the Nystroem warm start (the exact path draws nothing) and the
-        tuning's folds. The default 0 makes two fits of one matrix identical; None draws afresh.
+        Seeds the landmark draw of the Nystroem paths' solve (the exact path draws nothing). The
+        tuning's folds (and their Nystroem landmarks) do not depend on it: they are drawn from seed 0
+        on the rows sorted by their content, so the chosen width and tau depend on the data alone,
+        not on the row order or a seed. The default 0 makes two fits of one matrix identical; None
+        draws the landmarks afresh.
     warm_start : bool, default False
         A fit after a previous fit on a matrix of the same shape starts from the previous solve's S
         (``result_.x``) and solves the last penalty stage only (rho0 = rho_max), its stopping tests in
@@ -157,12 +163,22 @@ class KernelRegularizerImputer(MaskedImputerBase):
         The data term on the observed entries: masked least squares
         (:class:`~nldr.data_terms.MaskedLeastSquares`), or the masked Huber loss
         (:class:`~nldr.data_terms.MaskedHuber`: squared within ``delta``, linear beyond), for data
-        with gross errors among the observed entries. ``transform`` of new rows is the same for
-        both (the observed entries are kept).
+        with gross errors among the observed entries (to correct them, pass ``denoise=True``).
+        ``transform`` of new rows is the same for both unless ``denoise`` (then the loss weighs
+        their observed entries too).
     delta : float > 0, default 1.0
         The Huber threshold, in the units of the solved matrix (standardised units when
         ``standardize``); used with ``loss="huber"`` only.
         :class:`nldr.model_selection.RobustScaleDelta` sets it from a least-squares fit's residuals.
+    denoise : bool, default False
+        What ``fit_transform`` and ``transform`` return for the observed entries. False (an
+        imputer): the observed entries as given, the missing ones estimated. True (a denoiser):
+        the estimate of every entry: for the training rows the solve's S (whose observed entries the
+        data term only pulls towards X), for new rows the point nearest their observed entries
+        under the data loss (``loss``, ``delta``) plus ``rho_max`` times the squared feature-space
+        distance to the learnt subspace, the same balance of data against manifold as the last
+        penalty stage (:func:`nldr._preimage.complete_rows` with ``rho=rho_max``). The solve is
+        the same either way (a warm refit that changes only ``denoise`` keeps it).
 
     Attributes
     ----------
@@ -207,9 +223,13 @@ class KernelRegularizerImputer(MaskedImputerBase):
 
     over the completed matrix S and the kernel factor C, with the RBF kernel
     ``K_ij = exp(-gamma ||s_i - s_j||^2)``, by the penalty method on rho from mean imputation. The
-    estimate of a training row is the solve's S, whose observed entries also move slightly (the data
-    term is a penalty); ``transform`` keeps the observed entries of new rows and moves the missing
-    ones to the pre-image nearest the learnt subspace (:mod:`nldr._preimage`).
+    estimate of a training row's missing entries is the solve's S there (its observed entries move
+    slightly too, the data term being a penalty: ``denoise=True`` returns them); ``transform`` keeps
+    the observed entries of new rows and moves the missing ones to the pre-image nearest the learnt
+    subspace (:mod:`nldr._preimage`). Identical training rows share one estimate (the mean of the
+    solve's copies). Stability: the width and tau chosen by "auto" depend on the rows as a set; the
+    solve itself depends on the row order and on rounding-level changes of X only within its
+    stopping tolerances (docs/user_guide.md#stability).
 
     Examples
     --------
@@ -249,6 +269,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         warm_start=False,
         loss="squared",
         delta=1.0,
+        denoise=False,
     ):
         self.missing_values = missing_values
         self.gamma = gamma
@@ -272,6 +293,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self.warm_start = warm_start
         self.loss = loss
         self.delta = delta
+        self.denoise = denoise
 
     _min_samples = 2
 
@@ -298,6 +320,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         "warm_start": ["boolean"],
         "loss": [StrOptions(set(LOSSES))],
         "delta": [Interval(Real, 0, np.inf, closed="neither")],
+        "denoise": ["boolean"],
     }
 
     def _validate_params(self) -> None:
@@ -367,13 +390,15 @@ class KernelRegularizerImputer(MaskedImputerBase):
         """Choose gamma and tau among ``grid`` by the hold-out search on the observed entries of W.
 
         :class:`~nldr.model_selection.HoldoutSearch` with :data:`TUNE_FOLDS` Monte-Carlo folds, each
-        hiding :data:`TUNE_HOLDOUT` of the observed entries (seeded by ``random_state``, 0 when None),
+        hiding :data:`TUNE_HOLDOUT` of the observed entries (drawn from seed 0 on the rows in their
+        canonical order, :func:`~nldr.impute._base.canonical_row_order`, so the choice does not depend
+        on the order of the rows or on ``random_state``),
         the candidates of a fold solved as warm-started paths along tau from the smallest up (one
         cold solve per fold), looser tolerances, and the Nystroem kernel above
         :data:`AUTO_EXACT_MAX_ROWS` rows; the smallest mean squared hold-out error wins (in the units
         of W: standardised when ``standardize``). Returns the chosen ``{"gamma", "tau"}`` and sets
-        ``cv_results_``, and ``_holdout_against_means`` to (the choice's error, the column means'
-        error on the same folds)."""
+        ``cv_results_`` (its folds index the rows in canonical order), and ``_holdout_against_means``
+        to (the choice's error, the column means' error on the same folds)."""
         seed = self._tune_seed()
         base = self.get_params()
         base.update(gamma=grid["gamma"][0], tau=grid["tau"][0], warm_start=False, verbose=False)
@@ -392,11 +417,13 @@ class KernelRegularizerImputer(MaskedImputerBase):
             refit=False,
             verbose=bool(self.verbose),
         )
+        order = canonical_row_order(W, mask)
         with warnings.catch_warnings():  # a fold's mean fill is the search's business, scored as such
             warnings.simplefilter("ignore", ConvergenceWarning)
-            search.fit(np.where(mask, W, np.nan))
+            search.fit(np.where(mask, W, np.nan)[order])
         self.cv_results_ = search.cv_results_
-        self._holdout_against_means = (float(search.best_score_), _mean_fill_holdout(W, mask, search.folds_))
+        means = _mean_fill_holdout(W[order], mask[order], search.folds_)
+        self._holdout_against_means = (float(search.best_score_), means)
         return dict(search.best_params_)
 
     def _transform_candidates(self) -> list[tuple[int, str]]:
@@ -411,7 +438,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
     def _tune_transform(self, W, mask, gamma: float, tau: float) -> tuple[int, str]:
         """Choose ``transform``'s (n_neighbors, starts) by :data:`TUNE_FOLDS` row folds of the training rows.
 
-        Each fold (:func:`~nldr.impute._new_rows.row_folds`, seeded by ``random_state``) fits the
+        Each fold (:func:`~nldr.impute._new_rows.row_folds`, seed 0, rows in canonical order) fits the
         manifold (at ``gamma``, ``tau``, the tuning's fold solver) on the other rows, hides a share (the
         training matrix's missing share, at least :data:`TUNE_ROW_HIDDEN`) of the observed entries of
         :data:`TUNE_ROW_SHARE` of the rows, completes them with every candidate, and scores the mean
@@ -422,6 +449,8 @@ class KernelRegularizerImputer(MaskedImputerBase):
         if len(candidates) == 1:
             return candidates[0]
         share = max(TUNE_ROW_HIDDEN, 1.0 - mask.mean())
+        order = canonical_row_order(W, mask)
+        W, mask = W[order], mask[order]
         folds = row_folds(mask, TUNE_FOLDS, TUNE_ROW_SHARE, share, self._tune_seed())
         base = self.get_params()
         base.update(gamma=gamma, tau=tau, warm_start=False, verbose=False, **self._fold_solver(W.shape[0]))
@@ -436,9 +465,9 @@ class KernelRegularizerImputer(MaskedImputerBase):
         return best
 
     def _tune_seed(self) -> int:
-        if self.random_state is None:
-            return 0
-        return int(check_random_state(self.random_state).randint(np.iinfo(np.int32).max))
+        """The seed of the tuning's folds and fold landmarks: fixed, so that the chosen knobs depend on
+        the data only (the rows in their canonical order, so not on the order given either)."""
+        return 0
 
     def _fold_solver(self, n: int) -> dict:
         """The tuning's fold solves: the exact kernel up to AUTO_EXACT_MAX_ROWS rows, the Nystroem kernel
@@ -456,12 +485,12 @@ class KernelRegularizerImputer(MaskedImputerBase):
         tau = "auto" if _is_auto(self.tau) else float(self.tau)
         if self._keeps_solve(W, mask):  # a warm refit that changes only transform's knobs
             self._transform_knobs(W.shape[0])
-            return self.completed_, self.result_
+            return self._estimate, self.result_
         self.__dict__.pop("_solved_key", None)
         self.mean_, self.scale_ = self._standardisation(W, mask)
         Z = W if not self.standardize else np.where(mask, (W - self.mean_) / self.scale_, 0.0)
         S0 = mean_fill(Z, mask)
-        previous = getattr(self, "completed_", None) if self.warm_start else None
+        previous = getattr(self, "_estimate", None) if self.warm_start else None
         warm = previous is not None and previous.shape == W.shape
         if warm:  # the previous estimate, in this fit's (standardised) units
             S0 = previous if not self.standardize else (previous - self.mean_) / self.scale_
@@ -469,6 +498,9 @@ class KernelRegularizerImputer(MaskedImputerBase):
         grid = self._grid(gamma, tau, median_rule)
         tuned = (_is_auto(gamma) or _is_auto(tau)) and W.shape[0] >= TUNE_MIN_ROWS
         self.__dict__.pop("_holdout_against_means", None)
+        message = _defaults.long_fit_message(W.shape[0], tuned=tuned)
+        if message is not None:
+            warnings.warn(message, LongSolveWarning, stacklevel=4)
         if tuned:
             chosen = self._tune(Z, mask, grid)  # scored in the solved (standardised) units
         else:
@@ -493,6 +525,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self._space = None  # built by the first transform of a new row
         self._solved_key = self._solve_key()
         X_hat = S if not self.standardize else S * self.scale_ + self.mean_
+        self._estimate = X_hat  # the solve's S in the data's units (the next warm start's start)
         self._report_holdout(result)
         return X_hat, result
 
@@ -525,7 +558,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
     def _solve_key(self) -> tuple:
         """The parameters the solve depends on (all but transform's knobs and verbose), comparable."""
         params = self.get_params(deep=False)
-        ignored = {"n_neighbors", "starts", "weights", "warm_start", "verbose"}
+        ignored = {"n_neighbors", "starts", "weights", "warm_start", "verbose", "denoise"}
         return tuple((name, repr(params[name])) for name in sorted(set(params) - ignored))
 
     def _keeps_solve(self, W, mask) -> bool:
@@ -584,9 +617,14 @@ class KernelRegularizerImputer(MaskedImputerBase):
         if starts == "mean":
             rows = rows.mean(axis=1, keepdims=True)
         X0 = np.where(mask[:, None, :], Z[:, None, :], rows)
-        X_hat = complete_from_starts(self._subspace(), Z, mask, X0)
+        denoise = {}
+        if self.denoise:  # the observed entries free too: the last stage's balance of data and manifold
+            delta = float(self.delta) if self.loss == "huber" else None
+            denoise = {"rho": float(self.rho_max), "loss": self.loss, "delta": delta}
+        X_hat = complete_from_starts(self._subspace(), Z, mask, X0, **denoise)
         X_hat = X_hat[:, 0] if starts == "mean" else average_solutions(X_hat, distance, self.weights)
-        return np.where(mask, W, X_hat * self.scale_ + self.mean_)
+        X_hat = X_hat * self.scale_ + self.mean_
+        return X_hat if self.denoise else np.where(mask, W, X_hat)
 
 
 def _mean_fill_holdout(W: np.ndarray, mask: np.ndarray, folds) -> float:
