@@ -154,8 +154,8 @@ MUTANTS = [
     Mutant(
         "the regularizer's hold-out search scores the data's units",
         "src/nldr/impute/_regularizer.py",
-        "chosen = self._tune(Z, mask, grid)",
-        "chosen = self._tune(W, mask, grid)",
+        "chosen = tune(self, Z, mask, grid)",
+        "chosen = tune(self, W, mask, grid)",
         ("tests/test_reliability_units.py::test_the_regularizers_search_is_not_decided_by_a_columns_units",),
     ),
     Mutant(
@@ -171,7 +171,7 @@ MUTANTS = [
     ),
     Mutant(
         "a search no better than the column means is not reported",
-        "src/nldr/impute/_regularizer.py",
+        "src/nldr/impute/_tuning.py",
         "if errors is None or errors[0] < errors[1]:",
         "if True:",
         ("tests/test_reliability_units.py::test_a_search_no_better_than_the_column_means_says_so",),
@@ -206,7 +206,7 @@ MUTANTS = [
     ),
     Mutant(
         "regularizer: the search sees the rows in the order given",
-        "src/nldr/impute/_regularizer.py",
+        "src/nldr/impute/_tuning.py",
         "search.fit(np.where(mask, W, np.nan)[order])",
         "search.fit(np.where(mask, W, np.nan))",
         ("tests/test_reliability_consistency.py",),

@@ -6,7 +6,7 @@ import pytest
 from test_impute import hide, surface
 
 from nldr._baselines import mean_impute
-from nldr.impute import KernelRegularizerImputer
+from nldr.impute import KernelRegularizerImputer, _defaults
 from nldr.impute import _regularizer as module
 from nldr.impute._base import canonical_row_order
 from nldr.model_selection import holdout_folds
@@ -53,7 +53,7 @@ def test_the_tuning_scores_are_the_hold_out_errors_of_the_documented_folds(probl
     order = canonical_row_order(W, mask)  # the folds index the rows sorted by their content
     W, mask = W[order], mask[order]
     Z = (W - est.mean_) / est.scale_
-    folds = holdout_folds(mask, module.TUNE_FOLDS, 0, holdout=module.TUNE_HOLDOUT)
+    folds = holdout_folds(mask, _defaults.TUNE_FOLDS, 0, holdout=_defaults.TUNE_HOLDOUT)
     first = est.cv_results_["params"][0]
     for k, hidden in enumerate(folds):
         fold = KernelRegularizerImputer(**first, method="exact", **module.TUNE_TOLERANCES)
@@ -103,7 +103,7 @@ def test_transform_chooses_its_starts_at_the_first_new_row_by_the_row_folds(prob
     np.testing.assert_array_equal(est.transform(W[:30]), est.completed_)  # seen rows: no choice needed
     assert not hasattr(est, "n_neighbors_")
     X_new = est.transform(W[30:])
-    assert set(est.transform_results_) == set(module.TUNE_TRANSFORM)
+    assert set(est.transform_results_) == set(_defaults.TUNE_TRANSFORM)
     best = min(est.transform_results_, key=est.transform_results_.get)
     assert (est.n_neighbors_, est.starts_) == best
     fixed = KernelRegularizerImputer(gamma=est.gamma_, tau=est.tau_, n_neighbors=best[0], starts=best[1])
@@ -134,11 +134,11 @@ def brute_force_row_fold_errors(W, mask, gamma, tau, candidates):
     candidate at the fold solver, and the mean squared error on the hidden entries, averaged over folds."""
     n = W.shape[0]
     rng = np.random.default_rng(0)
-    share = max(module.TUNE_ROW_HIDDEN, 1.0 - mask.mean())
+    share = max(_defaults.TUNE_ROW_HIDDEN, 1.0 - mask.mean())
     errors = {c: [] for c in candidates}
-    for _ in range(module.TUNE_FOLDS):
+    for _ in range(_defaults.TUNE_FOLDS):
         held = np.zeros(n, dtype=bool)
-        held[rng.choice(n, max(1, int(round(module.TUNE_ROW_SHARE * n))), replace=False)] = True
+        held[rng.choice(n, max(1, int(round(_defaults.TUNE_ROW_SHARE * n))), replace=False)] = True
         observed = mask[held]
         hidden = observed & (rng.random(observed.shape) < share)
         for i in range(hidden.shape[0]):
@@ -168,14 +168,14 @@ def test_the_row_fold_scores_are_the_brute_force_errors_and_cost_one_solve_per_f
     real = module.minimize_regularized
     monkeypatch.setattr(module, "minimize_regularized", lambda *a, **kw: solves.append(1) or real(*a, **kw))
     est.transform(X_new)
-    assert len(solves) == module.TUNE_FOLDS  # the candidates of a fold share its one fit
-    candidates = module.TUNE_TRANSFORM
+    assert len(solves) == _defaults.TUNE_FOLDS  # the candidates of a fold share its one fit
+    candidates = _defaults.TUNE_TRANSFORM
     order = canonical_row_order(W, mask)  # the row folds index the rows sorted by their content
     W_sorted, mask_sorted = np.nan_to_num(W)[order], mask[order]
     # the folds score standardised units
     Z = np.where(mask_sorted, (W_sorted - est.mean_) / est.scale_, 0.0)
     expected = brute_force_row_fold_errors(Z, mask_sorted, est.gamma_, est.tau_, candidates)
-    assert list(est.transform_results_) == list(module.TUNE_TRANSFORM)
+    assert list(est.transform_results_) == list(_defaults.TUNE_TRANSFORM)
     for candidate, error in expected.items():
         assert est.transform_results_[candidate] == pytest.approx(error, rel=1e-10)
     assert (est.n_neighbors_, est.starts_) == min(expected, key=expected.get)

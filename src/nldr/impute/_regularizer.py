@@ -6,7 +6,6 @@ import warnings
 from numbers import Integral, Real
 
 import numpy as np
-from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils import check_random_state
 from sklearn.utils._param_validation import Interval, StrOptions
 
@@ -14,11 +13,8 @@ from .._baselines._masked import mean_fill, observed_standardisation
 from .._options import last_stage_only, solver_options
 from .._preimage import Subspace, average_solutions, complete_from_starts, nearest_rows
 from ..data_terms import MaskedHuber, MaskedLeastSquares
-from ..model_selection import HoldoutSearch
 from ..regularizer import LongSolveWarning, minimize_regularized
-from ..result import INACCURATE
-from . import _defaults
-from ._base import MaskedImputerBase, canonical_row_order
+from ._base import MaskedImputerBase
 from ._defaults import (
     AUTO_EXACT_MAX_ROWS,
     AUTO_LANDMARKS,
@@ -30,20 +26,16 @@ from ._defaults import (
     MEDIAN_RULE_MULTIPLE,
     METHODS,
     NYSTROEM_OPTIONS,
-    TUNE_FOLDS,
     TUNE_GAMMA_MULTIPLES,
-    TUNE_HOLDOUT,
     TUNE_LANDMARKS,
     TUNE_MIN_ROWS,
-    TUNE_ROW_HIDDEN,
-    TUNE_ROW_SHARE,
-    TUNE_STOP_FACTOR,
     TUNE_TAUS,
     TUNE_TOLERANCES,
-    TUNE_TRANSFORM,
+    long_fit_message,
     median_rule_gamma,
 )
-from ._new_rows import NoComponentsError, regularizer_subspace, row_folds, search_transform_knobs
+from ._new_rows import NoComponentsError, regularizer_subspace
+from ._tuning import is_auto, report_holdout, transform_candidates, tune, tune_transform
 
 __all__ = ["KernelRegularizerImputer"]
 
@@ -380,89 +372,11 @@ class KernelRegularizerImputer(MaskedImputerBase):
 
     def _grid(self, gamma, tau, median_rule: float) -> dict:
         """The tuning's candidates: every "auto" knob over its grid, the others at their one value."""
-        if _is_auto(gamma):
+        if is_auto(gamma):
             gammas = [float(m * median_rule / MEDIAN_RULE_MULTIPLE) for m in TUNE_GAMMA_MULTIPLES]
         else:
             gammas = [median_rule if gamma is None else float(gamma)]
-        return {"gamma": gammas, "tau": [float(t) for t in TUNE_TAUS] if _is_auto(tau) else [float(tau)]}
-
-    def _tune(self, W, mask, grid: dict) -> dict:
-        """Choose gamma and tau among ``grid`` by the hold-out search on the observed entries of W.
-
-        :class:`~nldr.model_selection.HoldoutSearch` with :data:`TUNE_FOLDS` Monte-Carlo folds, each
-        hiding :data:`TUNE_HOLDOUT` of the observed entries (drawn from seed 0 on the rows in their
-        canonical order, :func:`~nldr.impute._base.canonical_row_order`, so the choice does not depend
-        on the order of the rows or on ``random_state``),
-        the candidates of a fold solved as warm-started paths along tau from the smallest up (one
-        cold solve per fold), looser tolerances, and the Nystroem kernel above
-        :data:`AUTO_EXACT_MAX_ROWS` rows; the smallest mean squared hold-out error wins (in the units
-        of W: standardised when ``standardize``). Returns the chosen ``{"gamma", "tau"}`` and sets
-        ``cv_results_`` (its folds index the rows in canonical order), and ``_holdout_against_means``
-        to (the choice's error, the column means' error on the same folds)."""
-        seed = self._tune_seed()
-        base = self.get_params()
-        base.update(gamma=grid["gamma"][0], tau=grid["tau"][0], warm_start=False, verbose=False)
-        base.update(n_neighbors=TUNE_TRANSFORM[1][0], starts="mean")  # transform is not scored here
-        estimator = type(self)(**base)
-        fold_params = self._fold_solver(W.shape[0])
-        search = HoldoutSearch(
-            estimator,
-            grid,
-            n_folds=TUNE_FOLDS,
-            holdout=TUNE_HOLDOUT,
-            random_state=seed,
-            path="tau",
-            stop_factor=TUNE_STOP_FACTOR,
-            fold_params=fold_params,
-            refit=False,
-            verbose=bool(self.verbose),
-        )
-        order = canonical_row_order(W, mask)
-        with warnings.catch_warnings():  # a fold's mean fill is the search's business, scored as such
-            warnings.simplefilter("ignore", ConvergenceWarning)
-            search.fit(np.where(mask, W, np.nan)[order])
-        self.cv_results_ = search.cv_results_
-        means = _mean_fill_holdout(W[order], mask[order], search.folds_)
-        self._holdout_against_means = (float(search.best_score_), means)
-        return dict(search.best_params_)
-
-    def _transform_candidates(self) -> list[tuple[int, str]]:
-        """The (n_neighbors, starts) pairs the row folds compare: the "auto" ones over their grid."""
-        pairs = [c for c in TUNE_TRANSFORM if _is_auto(self.n_neighbors) or c[0] == self.n_neighbors]
-        pairs = [c for c in pairs if self.starts == "auto" or c[1] == self.starts]
-        if not pairs:  # a fixed n_neighbors or starts outside the grid
-            k = TUNE_TRANSFORM[1][0] if _is_auto(self.n_neighbors) else int(self.n_neighbors)
-            pairs = [(k, s) for s in ("mean", "each") if self.starts in ("auto", s)]
-        return pairs
-
-    def _tune_transform(self, W, mask, gamma: float, tau: float) -> tuple[int, str]:
-        """Choose ``transform``'s (n_neighbors, starts) by :data:`TUNE_FOLDS` row folds of the training rows.
-
-        Each fold (:func:`~nldr.impute._new_rows.row_folds`, seed 0, rows in canonical order) fits the
-        manifold (at ``gamma``, ``tau``, the tuning's fold solver) on the other rows, hides a share (the
-        training matrix's missing share, at least :data:`TUNE_ROW_HIDDEN`) of the observed entries of
-        :data:`TUNE_ROW_SHARE` of the rows, completes them with every candidate, and scores the mean
-        squared error on the hidden entries (units of W: standardised when ``standardize``); the
-        smallest mean wins (:class:`~nldr.model_selection.HoldoutSearch`, one fit per fold shared by
-        the candidates). Sets ``transform_results_`` (candidate -> mean error)."""
-        candidates = self._transform_candidates()
-        if len(candidates) == 1:
-            return candidates[0]
-        share = max(TUNE_ROW_HIDDEN, 1.0 - mask.mean())
-        order = canonical_row_order(W, mask)
-        W, mask = W[order], mask[order]
-        folds = row_folds(mask, TUNE_FOLDS, TUNE_ROW_SHARE, share, self._tune_seed())
-        base = self.get_params()
-        base.update(gamma=gamma, tau=tau, warm_start=False, verbose=False, **self._fold_solver(W.shape[0]))
-        X, found = np.where(mask, W, np.nan), None
-        if folds:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", ConvergenceWarning)
-                found = search_transform_knobs(type(self)(**base), X, candidates, folds, bool(self.verbose))
-        if found is None:  # nothing to hide, or a fold's manifold has no component
-            return TUNE_TRANSFORM[1] if TUNE_TRANSFORM[1] in candidates else candidates[0]
-        self.transform_results_, best = found
-        return best
+        return {"gamma": gammas, "tau": [float(t) for t in TUNE_TAUS] if is_auto(tau) else [float(tau)]}
 
     def _tune_seed(self) -> int:
         """The seed of the tuning's folds and fold landmarks: fixed, so that the chosen knobs depend on
@@ -481,8 +395,8 @@ class KernelRegularizerImputer(MaskedImputerBase):
         return {"method": "nystroem", "n_landmarks": landmarks, "options": options, **TUNE_TOLERANCES}
 
     def _solve(self, W, mask):
-        gamma = None if self.gamma is None else self.gamma if _is_auto(self.gamma) else float(self.gamma)
-        tau = "auto" if _is_auto(self.tau) else float(self.tau)
+        gamma = None if self.gamma is None else self.gamma if is_auto(self.gamma) else float(self.gamma)
+        tau = "auto" if is_auto(self.tau) else float(self.tau)
         if self._keeps_solve(W, mask):  # a warm refit that changes only transform's knobs
             self._transform_knobs(W.shape[0])
             return self._estimate, self.result_
@@ -494,20 +408,20 @@ class KernelRegularizerImputer(MaskedImputerBase):
         warm = previous is not None and previous.shape == W.shape
         if warm:  # the previous estimate, in this fit's (standardised) units
             S0 = previous if not self.standardize else (previous - self.mean_) / self.scale_
-        median_rule = median_rule_gamma(mean_fill(Z, mask)) if gamma is None or _is_auto(gamma) else None
+        median_rule = median_rule_gamma(mean_fill(Z, mask)) if gamma is None or is_auto(gamma) else None
         grid = self._grid(gamma, tau, median_rule)
-        tuned = (_is_auto(gamma) or _is_auto(tau)) and W.shape[0] >= TUNE_MIN_ROWS
+        tuned = (is_auto(gamma) or is_auto(tau)) and W.shape[0] >= TUNE_MIN_ROWS
         self.__dict__.pop("_holdout_against_means", None)
-        message = _defaults.long_fit_message(W.shape[0], tuned=tuned)
+        message = long_fit_message(W.shape[0], tuned=tuned)
         if message is not None:
             warnings.warn(message, LongSolveWarning, stacklevel=4)
         if tuned:
-            chosen = self._tune(Z, mask, grid)  # scored in the solved (standardised) units
+            chosen = tune(self, Z, mask, grid)  # scored in the solved (standardised) units
         else:
             self.__dict__.pop("cv_results_", None)
             chosen = {
-                "gamma": median_rule if _is_auto(gamma) else grid["gamma"][0],
-                "tau": 0.1 if _is_auto(tau) else grid["tau"][0],
+                "gamma": median_rule if is_auto(gamma) else grid["gamma"][0],
+                "tau": 0.1 if is_auto(tau) else grid["tau"][0],
             }
         self.gamma_, self.tau_ = float(chosen["gamma"]), float(chosen["tau"])
         self._transform_knobs(W.shape[0])
@@ -526,7 +440,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self._solved_key = self._solve_key()
         X_hat = S if not self.standardize else S * self.scale_ + self.mean_
         self._estimate = X_hat  # the solve's S in the data's units (the next warm start's start)
-        self._report_holdout(result)
+        report_holdout(self, result)
         return X_hat, result
 
     def _mean_fill_cause(self) -> str:
@@ -534,25 +448,6 @@ class KernelRegularizerImputer(MaskedImputerBase):
             f"tau (= {self.tau_:g}) far too large, or the data's units with standardize=False (tau, rho0 "
             "and gtol are in the solved matrix's units: for data scaled by s, scale tau and rho0 by s^2 "
             "and gtol by s, or standardize)"
-        )
-
-    def _report_holdout(self, result) -> None:
-        """A tuned choice whose hold-out error is no better than the column means' says so."""
-        errors = getattr(self, "_holdout_against_means", None)
-        if errors is None or errors[0] < errors[1]:
-            return
-        result.status = INACCURATE
-        result.message = (
-            f"{result.message}; the chosen gamma and tau predict the hidden entries no better than the "
-            f"column means (hold-out error {errors[0]:.4g} against {errors[1]:.4g})"
-        )
-        warnings.warn(
-            f"KernelRegularizerImputer: the hold-out search's best (gamma = {self.gamma_:g}, tau = "
-            f"{self.tau_:g}) predicts hidden entries no better than the observed column means (mean "
-            f"squared error {errors[0]:.4g} against {errors[1]:.4g}); the columns may carry no shared "
-            "structure, or the data's units dominate (use standardize=True)",
-            ConvergenceWarning,
-            stacklevel=4,
         )
 
     def _solve_key(self) -> tuple:
@@ -577,7 +472,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         :data:`TUNE_MIN_ROWS` rows), otherwise chosen by the row folds at the first new row."""
         for name in ("transform_results_", "n_neighbors_", "starts_"):
             self.__dict__.pop(name, None)
-        pairs = self._transform_candidates()
+        pairs = transform_candidates(self)
         if len(pairs) == 1 or n < TUNE_MIN_ROWS:
             self.n_neighbors_, self.starts_ = int(pairs[0][0]), str(pairs[0][1])
 
@@ -608,7 +503,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         if not hasattr(self, "n_neighbors_"):  # "auto": chosen once, before the first new row
             W_fit, mask_fit = self._training
             Z_fit = np.where(mask_fit, (W_fit - self.mean_) / self.scale_, 0.0)  # scored in solved units
-            k, starts = self._tune_transform(Z_fit, mask_fit, self.gamma_, self.tau_)
+            k, starts = tune_transform(self, Z_fit, mask_fit, self.gamma_, self.tau_)
             self.n_neighbors_, self.starts_ = int(k), str(starts)
         n_neighbors, starts = self.n_neighbors_, self.starts_
         nearest, distance = nearest_rows(S, Z, mask, min(n_neighbors, S.shape[0]))
@@ -625,19 +520,3 @@ class KernelRegularizerImputer(MaskedImputerBase):
         X_hat = X_hat[:, 0] if starts == "mean" else average_solutions(X_hat, distance, self.weights)
         X_hat = X_hat * self.scale_ + self.mean_
         return X_hat if self.denoise else np.where(mask, W, X_hat)
-
-
-def _mean_fill_holdout(W: np.ndarray, mask: np.ndarray, folds) -> float:
-    """The column means' mean squared error on each fold's hidden entries (means of the entries the
-    fold keeps), averaged over the folds: the score a mean fill gets in the search (units of W^2)."""
-    errors = []
-    for hidden in folds:
-        keep = mask & ~hidden
-        means = np.where(keep, W, 0.0).sum(axis=0) / np.maximum(keep.sum(axis=0), 1)
-        diff = (W - means[None, :])[hidden]
-        errors.append(float(diff @ diff) / diff.size)
-    return float(np.mean(errors))
-
-
-def _is_auto(value) -> bool:
-    return isinstance(value, str) and value == "auto"
