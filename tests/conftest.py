@@ -89,6 +89,15 @@ def alternate(W2d, mask, R0, shape_step, *, max_outer=20, tol=1e-4, window=1):
     return SimpleNamespace(x=X, R=R, nit=k, history=np.array(history), shape_history=np.array(shape_history))
 
 
+def curve_rows(n=24, seed=0, hidden=0.15):
+    """Rows near a 1-d curve in 4 columns, ``hidden`` of the entries NaN (every column observed)."""
+    rng = np.random.default_rng(seed)
+    t = rng.uniform(0.0, 3.0, n)
+    X = np.column_stack([t, np.sin(t), np.cos(t), t**2 / 3]) + 0.01 * rng.standard_normal((n, 4))
+    X[rng.random(X.shape) < hidden] = np.nan
+    return X
+
+
 def synthetic_sequence(n_frames=12, n_points=9, rank=2, seed=0):
     """Shapes from a rank-`rank` linear basis around a mean shape, random rotation cameras, exact tracks.
 

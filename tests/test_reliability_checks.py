@@ -7,22 +7,13 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import synthetic_sequence
+from conftest import curve_rows, synthetic_sequence
 from sklearn.base import clone
 
 from nldr import impute
 from nldr.model_selection import HoldoutSearch
 from nldr.nrsfm import reconstruct
 from nldr.robust_kpca import RobustKernelPCA
-
-
-def _curve(n=24, seed=0, hidden=0.15):
-    """Rows near a 1-d curve in 4 columns, ``hidden`` of the entries NaN (every column observed)."""
-    rng = np.random.default_rng(seed)
-    t = rng.uniform(0.0, 3.0, n)
-    X = np.column_stack([t, np.sin(t), np.cos(t), t**2 / 3]) + 0.01 * rng.standard_normal((n, 4))
-    X[rng.random(X.shape) < hidden] = np.nan
-    return X
 
 
 def _centred_tracks(n_points=9):
@@ -50,7 +41,7 @@ def _boolean_parameters():
 
 @pytest.mark.parametrize("estimator, name", list(_boolean_parameters()))
 def test_boolean_parameters_refuse_strings(estimator, name):
-    X = _curve()
+    X = curve_rows()
     model = clone(estimator).set_params(**{name: "no"})
     data = X if not isinstance(model, RobustKernelPCA) else np.nan_to_num(X)
     with pytest.raises(ValueError, match=name):
@@ -60,7 +51,7 @@ def test_boolean_parameters_refuse_strings(estimator, name):
 def test_holdout_search_names_an_all_missing_column():
     from sklearn.impute import SimpleImputer
 
-    X = _curve()
+    X = curve_rows()
     X[:, 2] = np.nan
     search = HoldoutSearch(SimpleImputer(), {"strategy": ["mean", "median"]})
     with pytest.raises(ValueError, match=r"column\(s\) \[2\] have no observed entry.*drop those columns"):
@@ -99,14 +90,14 @@ def test_reconstruct_refuses_kernel_options_before_solving_its_start(monkeypatch
 
 
 def test_robust_kernel_pca_imputer_warns_truly_when_no_component_is_left():
-    X = _curve(hidden=0.0)
+    X = curve_rows(hidden=0.0)
     model = impute.RobustKernelPCAImputer(tau=1e6)
     with pytest.warns(UserWarning, match="removes every component") as record:
         model.fit(X)
     messages = [str(w.message) for w in record]
     assert not any("(n, 0)" in m for m in messages)  # the imputer's transform keeps every column
     assert any(f"(n, {X.shape[1]}) arrays" in m and "Lower tau" in m for m in messages)
-    assert model.transform(_curve()).shape == X.shape
+    assert model.transform(curve_rows()).shape == X.shape
 
 
 def test_both_nystroem_paths_default_to_the_same_landmark_count(monkeypatch):
@@ -123,7 +114,7 @@ def test_both_nystroem_paths_default_to_the_same_landmark_count(monkeypatch):
     monkeypatch.setattr(module, "minimize_regularized", record)
     for method in ("nystroem", "nystroem-warm"):
         with pytest.raises(StopIteration):
-            impute.KernelRegularizerImputer(method=method, gamma=0.3, tau=0.1).fit(_curve())
+            impute.KernelRegularizerImputer(method=method, gamma=0.3, tau=0.1).fit(curve_rows())
     for method in ("nystroem", "nystroem-warm"):
         assert solver_options(method, seen[method]).landmarks == DEFAULT_LANDMARKS
     explicit = impute.KernelRegularizerImputer(method="nystroem", n_landmarks=7)._solver_options()
@@ -148,13 +139,13 @@ def test_reconstruct_warns_about_tracks_off_centre_but_not_about_chance_offsets(
 @pytest.mark.parametrize("name", [n for n in impute.__all__ if n != "DecompositionDenoiser"])
 def test_entries_whose_squares_float64_cannot_hold_are_refused_by_every_imputer(name, factor):
     with pytest.raises(ValueError, match=r"(overflow|underflow) float64.*Rescale the columns of X"):
-        getattr(impute, name)().fit(_curve() * factor)
+        getattr(impute, name)().fit(curve_rows() * factor)
 
 
 def test_ordinary_units_pass_the_range_check_unchanged():
     from nldr._validation import check_squares_representable
 
-    X = _curve()
+    X = curve_rows()
     mask = ~np.isnan(X)
     for factor in (1e-6, 1e-3, 1.0, 1e3, 1e6):
         check_squares_representable(np.where(mask, X * factor, 0.0), mask, "X")
@@ -172,7 +163,7 @@ def test_float32_input_comes_back_float64_as_documented(name):
     from protocol import REPO
 
     estimator = getattr(impute, name)
-    X = _curve(hidden=0.0 if name == "RobustKernelPCAImputer" else 0.15).astype(np.float32)
+    X = curve_rows(hidden=0.0 if name == "RobustKernelPCAImputer" else 0.15).astype(np.float32)
     assert estimator().fit_transform(X).dtype == np.float64
     assert "float64" in estimator.transform.__doc__ and "float64" in estimator.fit_transform.__doc__
     guide = (REPO / "docs/user_guide.md").read_text()

@@ -10,6 +10,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import curve_rows
 from sklearn.base import clone
 from sklearn.datasets import load_wine
 from sklearn.model_selection import StratifiedKFold
@@ -21,15 +22,6 @@ from nldr.datasets import load_oil
 from nldr.impute import KernelRegularizerImputer, RobustPCAImputer
 from nldr.impute import _defaults as defaults
 from nldr.regularizer import LongSolveWarning
-
-
-def _curve(n=24, seed=0, hidden=0.15):
-    """Rows near a 1-d curve in 4 columns, ``hidden`` of the entries NaN (every column observed)."""
-    rng = np.random.default_rng(seed)
-    t = rng.uniform(0.0, 3.0, n)
-    X = np.column_stack([t, np.sin(t), np.cos(t), t**2 / 3]) + 0.01 * rng.standard_normal((n, 4))
-    X[rng.random(X.shape) < hidden] = np.nan
-    return X
 
 
 @pytest.fixture
@@ -58,7 +50,7 @@ def test_transform_of_the_fitted_rows_is_fit_transform_and_copies_share_one_esti
     fit_transform are the same array; every copy of a duplicated row (same values, same missing
     entries) gets one estimate, and transform returns it for each copy; observed entries are kept
     unless ``denoise``."""
-    X = _curve()
+    X = curve_rows()
     D = np.vstack([X, X])
     observed = ~np.isnan(X)
     with warnings.catch_warnings():
@@ -78,7 +70,7 @@ def test_transform_of_the_fitted_rows_is_fit_transform_and_copies_share_one_esti
 def test_new_rows_keep_their_observed_entries_unless_denoised(estimator):
     """A Pipeline's test rows are new to the imputer: they are treated like its training rows, the
     observed entries kept by an imputer and re-estimated by a denoiser."""
-    X = _curve(n=30)
+    X = curve_rows(n=30)
     train, test = X[:24], X[24:]
     observed = ~np.isnan(test)
     with warnings.catch_warnings():
@@ -92,7 +84,7 @@ def test_new_rows_keep_their_observed_entries_unless_denoised(estimator):
 
 
 def test_the_denoised_training_rows_are_the_solves_estimate():
-    X = _curve()
+    X = curve_rows()
     rpca = RobustPCAImputer(denoise=True, standardize=False)  # result_ is in the solved units
     np.testing.assert_array_equal(rpca.fit_transform(X), rpca.result_.x)
     ours = KernelRegularizerImputer(gamma=0.5, tau=0.1, denoise=True)
@@ -174,7 +166,7 @@ def test_a_long_default_fit_warns_before_it_starts():
 
 
 def test_the_fit_raises_the_long_fit_warning(monkeypatch):
-    X = _curve()
+    X = curve_rows()
     monkeypatch.setattr(defaults, "LONG_FIT_ROWS", 20)
     with pytest.warns(LongSolveWarning, match="verbose=True"):
         KernelRegularizerImputer().fit(X)
