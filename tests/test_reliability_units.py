@@ -122,6 +122,8 @@ def test_the_regularizers_search_is_not_decided_by_a_columns_units():
     c[0], c[1] = 2.0**20, 2.0**-20
     got = KernelRegularizerImputer().fit(W * c)
     assert (got.gamma_, got.tau_) == (ref.gamma_, ref.tau_)
+    # every candidate's score, not only the winner: in standardised units they are the same numbers
+    np.testing.assert_array_equal(got.cv_results_["mean_test_error"], ref.cv_results_["mean_test_error"])
     np.testing.assert_array_equal(got.completed_ / c, ref.completed_)
     c[0], c[1] = 1e6, 1e-6
     got = KernelRegularizerImputer().fit(W * c)
