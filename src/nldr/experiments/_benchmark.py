@@ -185,7 +185,7 @@ def run_cell(
                 }
             )
             seconds.append(cpu)
-            say(f"{mechanism} p={p:g} mask {k} {method:16s} rmse={rows[-1]['rmse']:.4f} {cpu:7.2f} CPU s")
+            say(f"{mechanism} p={p:g} mask {k} {method:16s} rmse={rows[-1]['rmse']:.4f} cpu {cpu:.2f}s")
     frame = pd.DataFrame(rows)
     frame["rank"] = frame.groupby("mask")["rmse"].rank(method="average")
     arrays = {

@@ -161,7 +161,7 @@ class Selection(Table2):
                     **extra,
                 }
             )
-            say(f"p={p:g} seed={seed} {method:26s} sse={sse:9.3f} {cpu:7.2f} CPU s {extra}")
+            say(f"p={p:g} seed={seed} {method:26s} sse={sse:9.3f} cpu {cpu:.2f}s {extra}")
 
         # the exact solves (paper values, the CV's refit, the oracle): the paper's schedule, the
         # uncentred kernel, the path to the exact answer the config gives at this p

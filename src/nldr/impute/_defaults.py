@@ -86,8 +86,8 @@ TUNE_LANDMARKS = 100
 TUNE_STOP_FACTOR = 1.5
 NYSTROEM_OPTIONS = frozenset(f.name for f in dataclasses.fields(NystroemOptions))
 #: from this many rows a fit that runs the "auto" search warns about its cost before it starts
-#: (:class:`~nldr.regularizer.LongSolveWarning`): the search's fold solves and the fit together take
-#: about half a CPU minute here and grow with the rows (measured: docs/PERFORMANCE.md#long-default-fits)
+#: (:class:`~nldr.regularizer.LongSolveWarning`): the search's fold solves and the fit together grow
+#: with the rows (measured: docs/PERFORMANCE.md#long-default-fits)
 LONG_FIT_ROWS = 1000
 #: CPU seconds of a default fit (search and solve) per 1000 rows, scaled linearly for the warning's
 #: estimate (measured: docs/PERFORMANCE.md#long-default-fits)
