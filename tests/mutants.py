@@ -220,10 +220,17 @@ MUTANTS = [
         ("tests/test_reliability_consistency.py",),
     ),
     Mutant(
-        "regularizer: a long default fit says nothing",
+        "regularizer: the default's landmarks drawn at random",
         "src/nldr/impute/_defaults.py",
-        "    if not tuned or n < LONG_FIT_ROWS:",
-        "    if True:",
+        'AUTO_LANDMARKS, AUTO_LANDMARK_RULE, AUTO_STAGE_TOL = 150, "pivoted", 1e-6',
+        'AUTO_LANDMARKS, AUTO_LANDMARK_RULE, AUTO_STAGE_TOL = 150, "random", 1e-6',
+        ("tests/test_reliability_consistency.py",),
+    ),
+    Mutant(
+        "regularizer: the search runs at every size",
+        "src/nldr/impute/_regularizer.py",
+        "TUNE_MIN_ROWS <= W.shape[0] < TUNE_MAX_ROWS",
+        "TUNE_MIN_ROWS <= W.shape[0]",
         ("tests/test_reliability_consistency.py",),
     ),
 ]

@@ -174,21 +174,22 @@ def test_auto_method_by_size(rng):
     assert KernelRegularizerImputer().fit(W).method_ == "exact"
 
 
-def test_auto_method_runs_every_stage_on_landmarks_from_its_threshold(rng, monkeypatch):
-    """From AUTO_NYSTROEM_MIN_ROWS rows "auto" is method="nystroem" on AUTO_LANDMARKS landmarks (the
-    warm start's own options dropped, the landmark seed drawn from random_state), below it the warm start."""
+def test_auto_method_runs_every_stage_on_pivoted_landmarks_above_its_threshold(rng, monkeypatch):
+    """Above AUTO_EXACT_MAX_ROWS rows "auto" is method="nystroem" on AUTO_LANDMARKS landmarks chosen by
+    AUTO_LANDMARK_RULE, the stages before the last stopping at AUTO_STAGE_TOL (the warm start's own
+    options dropped), at or below it the exact solver."""
     from nldr.impute import _regularizer as module
 
-    monkeypatch.setattr(module, "AUTO_EXACT_MAX_ROWS", 20)
-    monkeypatch.setattr(module, "AUTO_NYSTROEM_MIN_ROWS", 50)
+    monkeypatch.setattr(module, "AUTO_EXACT_MAX_ROWS", 49)
     monkeypatch.setattr(module, "AUTO_LANDMARKS", 15)
     W, _ = hide(surface(60, rng, noise=0.01), 0.25, rng)
     kw = {"gamma": None, "tau": 0.1, "random_state": 4}
     auto = KernelRegularizerImputer(**kw, options={"exact_stages": 1}).fit(W)
-    explicit = KernelRegularizerImputer(**kw, method="nystroem", n_landmarks=15).fit(W)
+    rule = {"landmark_rule": module.AUTO_LANDMARK_RULE, "stage_tol": module.AUTO_STAGE_TOL}
+    explicit = KernelRegularizerImputer(**kw, method="nystroem", n_landmarks=15, options=rule).fit(W)
     assert auto.method_ == "nystroem"
     np.testing.assert_array_equal(auto.completed_, explicit.completed_)  # the same computation
-    assert KernelRegularizerImputer(**kw).fit(W[:49]).method_ == "nystroem-warm"
+    assert KernelRegularizerImputer(**kw).fit(W[:49]).method_ == "exact"
     assert np.isfinite(auto.transform(W[:5] + 0.01)).all()
 
 

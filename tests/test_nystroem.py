@@ -8,7 +8,13 @@ from conftest import denoising_problem, within_observed_range
 from threadpoolctl import threadpool_limits
 
 from nldr._baselines import mean_impute
-from nldr._nystroem import landmark_indices, landmark_map, nystroem_factor, nystroem_value_grad
+from nldr._nystroem import (
+    landmark_indices,
+    landmark_map,
+    nystroem_factor,
+    nystroem_value_grad,
+    pivoted_landmarks,
+)
 from nldr.data_terms import MaskedLeastSquares
 from nldr.kernels import center_kernel, rbf_kernel
 from nldr.model_selection import median_gamma
@@ -107,3 +113,58 @@ def test_hidden_entries_stay_near_the_data_on_few_landmarks(m):
             term, S0, gamma=gamma, tau=tau, method="nystroem", options={"landmarks": m}
         )
         assert within_observed_range(res.x, W, mask), f"hidden entries escaped at tau={tau}, m={m}"
+
+
+def _residual_diagonal_brute(S, chosen):
+    """diag(K - K_nZ K_ZZ^+ K_Zn) of the RBF kernel at GAMMA, by the pseudo-inverse."""
+    K = rbf_kernel(S, GAMMA)
+    K_nZ = K[:, chosen]
+    return np.diag(K - K_nZ @ np.linalg.pinv(K[np.ix_(chosen, chosen)]) @ K_nZ.T)
+
+
+def test_pivoted_landmarks_are_the_greedy_choice_of_the_residual_diagonal(problem):
+    """Brute force: each added pivot is the sample the previous pivots span worst (largest diagonal of
+    the Nystroem residual, computed with the pseudo-inverse), the first the sample nearest the mean."""
+    _, S, _ = problem
+    previous = pivoted_landmarks(S, 1, GAMMA)
+    assert previous.tolist() == [int(np.argmin(np.sum((S - S.mean(axis=0)) ** 2, axis=1)))]
+    for m in range(2, 12):
+        chosen = pivoted_landmarks(S, m, GAMMA)
+        added = sorted(set(chosen.tolist()) - set(previous.tolist()))
+        assert len(added) == 1 and set(previous.tolist()) <= set(chosen.tolist())
+        residual = _residual_diagonal_brute(S, previous)
+        # the pivoted Cholesky residual differs from the pseudo-inverse's by rounding (K_ZZ well conditioned)
+        assert residual[added[0]] == pytest.approx(residual.max(), abs=1e-9)
+        previous = chosen
+
+
+def test_pivoted_landmarks_do_not_depend_on_the_order_and_take_isolated_samples(problem):
+    _, S, rng = problem
+    S = np.vstack([S, S[:1] + 50.0])  # one sample far from every other: its own kernel column
+    chosen = pivoted_landmarks(S, 5, GAMMA)
+    assert S.shape[0] - 1 in chosen  # the isolated sample is spanned by no other: a landmark
+    order = rng.permutation(S.shape[0])
+    np.testing.assert_array_equal(np.sort(order[pivoted_landmarks(S[order], 5, GAMMA)]), chosen)
+
+
+def test_pivoted_landmarks_stop_at_the_kernels_rank():
+    """Three distinct samples, each twice: three pivots span the kernel, the copies are never taken."""
+    S = np.repeat(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 2.0]]), 2, axis=0)
+    chosen = pivoted_landmarks(S, 5, GAMMA)
+    assert chosen.size == 3 and len({tuple(S[i]) for i in chosen}) == 3
+
+
+def test_landmark_rule_is_validated(problem):
+    term, S, _ = problem
+    with pytest.raises(ValueError, match="landmark_rule"):
+        options = {"landmarks": 5, "landmark_rule": "kmeans"}
+        minimize_regularized(term, S, gamma=GAMMA, tau=TAU, method="nystroem", options=options)
+
+
+def test_pivoted_solve_is_deterministic_and_ignores_the_seed(problem):
+    term, S, _ = problem
+    kw = {"gamma": GAMMA, "tau": TAU, "method": "nystroem"}
+    options = {"landmarks": 15, "landmark_rule": "pivoted"}
+    a = minimize_regularized(term, S, options={**options, "landmark_seed": 1}, **kw)
+    b = minimize_regularized(term, S, options={**options, "landmark_seed": 2}, **kw)
+    np.testing.assert_array_equal(a.x, b.x)

@@ -1,7 +1,7 @@
 """Pipeline consistency and stability of the imputers: ``transform`` treats the rows ``fit`` saw as
 ``fit_transform`` did, identical rows get one estimate, an imputer keeps the observed entries (a
 denoiser is the named option ``denoise``), the "auto" choices of the kernel regularizer do not depend
-on the row order or ``random_state``, and a default fit that will take long says so before it starts.
+on the row order or ``random_state``, at every size.
 Tiny data: the whole file runs in seconds."""
 
 from __future__ import annotations
@@ -21,7 +21,6 @@ from nldr import impute
 from nldr.datasets import load_oil
 from nldr.impute import KernelRegularizerImputer, RobustPCAImputer
 from nldr.impute import _defaults as defaults
-from nldr.regularizer import LongSolveWarning
 
 
 @pytest.fixture
@@ -156,20 +155,33 @@ def test_a_rounding_level_change_keeps_the_choices_and_the_energy(oil):
     assert _relative_energy_gap(a, b) <= _energy_bound(a)
 
 
-def test_a_long_default_fit_warns_before_it_starts():
-    """The trigger on its inputs: the default path at 2500 x 12 warns, naming the way out; a smaller
-    fit, or one without the search (a long exact solve has minimize_regularized's own warning), do not."""
-    message = defaults.long_fit_message(2500, tuned=True)
-    assert message is not None and "verbose=True" in message and "gamma" in message and "tau" in message
-    assert defaults.long_fit_message(defaults.LONG_FIT_ROWS - 1, tuned=True) is None
-    assert defaults.long_fit_message(2500, tuned=False) is None
+def test_above_the_exact_rows_the_default_solve_does_not_depend_on_random_state_or_the_order(
+    oil, monkeypatch
+):
+    """Above AUTO_EXACT_MAX_ROWS "auto" runs the Nystroem kernel on pivoted landmarks, a function of the
+    data: other seeds give the same array, and the rows in another order the same landmarks (so the
+    same energy, to the stopping tolerance: one computation on permuted rows)."""
+    from nldr.impute import _regularizer as module
+
+    monkeypatch.setattr(module, "AUTO_EXACT_MAX_ROWS", 20)
+    monkeypatch.setattr(module, "AUTO_LANDMARKS", 12)
+    fits = [KernelRegularizerImputer(gamma=None, tau=0.1, random_state=seed).fit(oil) for seed in (0, 7)]
+    assert fits[0].method_ == "nystroem"
+    np.testing.assert_array_equal(fits[1].completed_, fits[0].completed_)
+    order = np.random.default_rng(2).permutation(oil.shape[0])
+    shuffled = KernelRegularizerImputer(gamma=None, tau=0.1).fit(oil[order])
+    assert _relative_energy_gap(fits[0], shuffled) <= _energy_bound(fits[0])
 
 
-def test_the_fit_raises_the_long_fit_warning(monkeypatch):
-    X = curve_rows()
-    monkeypatch.setattr(defaults, "LONG_FIT_ROWS", 20)
-    with pytest.warns(LongSolveWarning, match="verbose=True"):
-        KernelRegularizerImputer().fit(X)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", LongSolveWarning)
-        KernelRegularizerImputer(gamma=0.5, tau=0.1, method="exact").fit(X)
+def test_from_the_search_rows_the_default_is_the_median_rule(oil, monkeypatch):
+    """From TUNE_MAX_ROWS rows "auto" runs no search: the median rule's width and UNTUNED_TAU, the fit
+    of those values written out."""
+    from nldr.impute import _regularizer as module
+
+    monkeypatch.setattr(module, "TUNE_MAX_ROWS", 30)
+    auto = KernelRegularizerImputer().fit(oil)
+    assert not hasattr(auto, "cv_results_") and auto.tau_ == defaults.UNTUNED_TAU
+    fixed = KernelRegularizerImputer(gamma=None, tau=defaults.UNTUNED_TAU).fit(oil)
+    assert auto.gamma_ == fixed.gamma_
+    np.testing.assert_array_equal(auto.completed_, fixed.completed_)
+    assert hasattr(KernelRegularizerImputer().fit(oil[:29]), "cv_results_")

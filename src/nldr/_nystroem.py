@@ -4,8 +4,9 @@ Inner functions of :func:`nldr.regularizer.minimize_regularized` with ``method="
 input.
 
 Maintenance note (the approximation and its gradient). Fix m landmark points Z (m, d) for one penalty
-stage: the current positions of m samples chosen once per solve (a seeded random subset, re-read at
-the start of every stage). With K_nZ = exp(-gamma ||s_i - z_j||^2) and P = K_ZZ^{+1/2} (P P^T the
+stage: the current positions of m samples chosen once per solve (a seeded random subset, or the
+pivots of a greedy pivoted Cholesky factorisation of the start's kernel; re-read at the start of
+every stage). With K_nZ = exp(-gamma ||s_i - z_j||^2) and P = K_ZZ^{+1/2} (P P^T the
 pseudo-inverse of K_ZZ, eigenvalues below 1e-10 of the largest dropped), the kernel is replaced by
 
     K~(S) = Phi Phi^T,   Phi = K_nZ(S) P   (n x m'),
@@ -45,12 +46,42 @@ import numpy as np
 from ._spectral import shrink
 from .kernels import squared_distances
 
-__all__ = ["landmark_indices", "landmark_map", "nystroem_value_grad", "nystroem_factor"]
+__all__ = ["landmark_indices", "pivoted_landmarks", "landmark_map", "nystroem_value_grad", "nystroem_factor"]
 
 
 def landmark_indices(n: int, m: int, seed: int) -> np.ndarray:
     """m distinct sample indices out of n (sorted), drawn from ``numpy.random.default_rng(seed)``."""
     return np.sort(np.random.default_rng(seed).choice(n, size=min(m, n), replace=False))
+
+
+def pivoted_landmarks(S: np.ndarray, m: int, gamma: float) -> np.ndarray:
+    """m sample indices (sorted; fewer when the kernel's rank is reached) chosen by greedy pivoted
+    Cholesky of the RBF kernel ``exp(-gamma ||s_i - s_j||^2)`` of S (n, d).
+
+    The first pivot is the sample nearest the mean of S; each next one is the sample the pivots so far
+    span worst, the largest diagonal of the residual kernel K - K_nZ K_ZZ^{-1} K_Zn (the Nystroem
+    kernel's error on the diagonal; the sample farthest, in feature space, from the landmarks' span).
+    Each pivot lowers the trace of that residual by the most any one sample can (a greedy minimiser of
+    the Nystroem error's trace), so isolated samples become landmarks and the landmarks cover the data
+    at the kernel's width. Deterministic: the same set for the samples in any order (but for exact
+    ties, e.g. duplicated samples). O(n m (m + d)) flops, no n x n matrix.
+    """
+    n = S.shape[0]
+    residual = np.ones(n)  # the RBF kernel's diagonal
+    L = np.zeros((min(m, n), n))  # the rows of the partial Cholesky factor
+    chosen: list[int] = []
+    pivot = int(np.argmin(np.sum((S - S.mean(axis=0)) ** 2, axis=1)))
+    for k in range(L.shape[0]):
+        if k > 0:
+            pivot = int(np.argmax(residual))
+        if residual[pivot] <= 1e-12:  # the pivots span the kernel to rounding
+            break
+        column = np.exp(-gamma * np.sum((S - S[pivot]) ** 2, axis=1))
+        L[k] = (column - L[:k, pivot] @ L[:k]) / np.sqrt(residual[pivot])
+        residual = np.maximum(residual - L[k] ** 2, 0.0)
+        residual[pivot] = 0.0
+        chosen.append(pivot)
+    return np.sort(np.array(chosen, dtype=int))
 
 
 def landmark_map(Z: np.ndarray, gamma: float) -> np.ndarray:

@@ -33,6 +33,16 @@ DEFAULT_RHO0 = 1.0
 DEFAULT_RHO_MAX = 1e4
 
 
+#: ``options["landmark_rule"]`` of the Nystroem paths
+LANDMARK_RULES = ("random", "pivoted")
+
+
+def _check_rule(value, name: str) -> str:
+    if not isinstance(value, str) or value not in LANDMARK_RULES:
+        raise ValueError(f"{name} must be one of {list(LANDMARK_RULES)}; got {value!r}")
+    return value
+
+
 def _check_seed(value, name: str) -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
         raise ValueError(f"{name} must be an integer >= 0 (a seed of numpy's default_rng); got {value!r}")
@@ -112,16 +122,22 @@ class NystroemOptions(_StoppingOptions):
     landmarks : int >= 1 (required)
         Number of landmark samples; ``landmarks >= n_samples`` runs the exact kernel.
     landmark_seed : int >= 0, default 0
-        Seed of the landmark draw.
+        Seed of the landmark draw (``landmark_rule="random"``).
+    landmark_rule : {"random", "pivoted"}, default "random"
+        How the landmarks are chosen: a uniform draw without replacement from ``landmark_seed``, or
+        the pivots of a greedy pivoted Cholesky factorisation of the start's kernel
+        (:func:`nldr._nystroem.pivoted_landmarks`: deterministic, isolated samples included).
     """
 
     landmarks: int
     landmark_seed: int = 0
+    landmark_rule: str = "random"
 
     def __post_init__(self):
         super().__post_init__()
         self._set("landmarks", check_count(self.landmarks, "options['landmarks']"))
         self._set("landmark_seed", _check_seed(self.landmark_seed, "options['landmark_seed']"))
+        self._set("landmark_rule", _check_rule(self.landmark_rule, "options['landmark_rule']"))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -132,6 +148,8 @@ class NystroemWarmOptions(_StoppingOptions):
     ----------
     landmarks : int >= 1, default 100
     landmark_seed : int >= 0, default 0
+    landmark_rule : {"random", "pivoted"}, default "random"
+        As :class:`NystroemOptions`.
     exact_stages : int >= 1, default 1
         Number of final stages solved with the exact kernel.
     exact_tol : float > 0 or None, default None
@@ -144,6 +162,7 @@ class NystroemWarmOptions(_StoppingOptions):
 
     landmarks: int = 100
     landmark_seed: int = 0
+    landmark_rule: str = "random"
     exact_stages: int = 1
     exact_tol: float | None = None
     last_landmarks: int | None = None
@@ -153,6 +172,7 @@ class NystroemWarmOptions(_StoppingOptions):
         super().__post_init__()
         self._set("landmarks", check_count(self.landmarks, "options['landmarks']"))
         self._set("landmark_seed", _check_seed(self.landmark_seed, "options['landmark_seed']"))
+        self._set("landmark_rule", _check_rule(self.landmark_rule, "options['landmark_rule']"))
         self._set("exact_stages", check_count(self.exact_stages, "options['exact_stages']"))
         if self.exact_tol is not None:
             self._set("exact_tol", check_positive(self.exact_tol, "options['exact_tol']"))

@@ -60,7 +60,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ._nystroem import landmark_indices, landmark_map, nystroem_factor, nystroem_value_grad
+from ._nystroem import landmark_indices, landmark_map, nystroem_factor, nystroem_value_grad, pivoted_landmarks
 from ._options import ExactOptions, NystroemOptions, NystroemWarmOptions, solver_options
 from ._penalty import RegularizerResult, penalty_method
 from ._reduced import (
@@ -228,9 +228,8 @@ def _run_stages(
     m, n_approx, m_last, plateau = plan if plan is not None else (None, 0, None, None)
     done = [0]  # stages finished so far (stage_end closes each)
     if plan is not None:
-        seed = opts.landmark_seed
-        idx = landmark_indices(S.shape[0], m, seed)
-        idx_last = idx if m_last is None else landmark_indices(S.shape[0], m_last, seed)
+        idx = _landmarks(S, m, gamma, opts)
+        idx_last = idx if m_last is None else _landmarks(S, m_last, gamma, opts)
         frozen = {}
 
     def nystroem_here():
@@ -260,6 +259,13 @@ def _run_stages(
         return value, kernel_factor(l, U), int(np.count_nonzero(l))
 
     return penalty_method(S, rhos, stage, stage_end, start=start, callback=callback, verbose=verbose)
+
+
+def _landmarks(S, m, gamma, opts) -> np.ndarray:
+    """The landmark indices of a solve from its start S, by ``opts.landmark_rule``."""
+    if opts.landmark_rule == "pivoted":
+        return pivoted_landmarks(S, m, gamma)
+    return landmark_indices(S.shape[0], m, opts.landmark_seed)
 
 
 def _stage_plan(method, opts, n, rhos):
@@ -313,8 +319,8 @@ def minimize_regularized(
 
         - "exact": the kernel itself in every stage (the default and the reference).
         - "nystroem": opt-in approximation. The kernel is replaced by its Nystroem approximation on
-          ``options["landmarks"]`` landmark samples (a random subset drawn from
-          ``options["landmark_seed"]``, re-read from S at the start of every stage; module
+          ``options["landmarks"]`` landmark samples (chosen once from the start S0 by
+          ``options["landmark_rule"]``, re-read from S at the start of every stage; module
           :mod:`nldr._nystroem`). One evaluation then costs O(n m^2) instead of O(n^2 r) plus an
           n x n eigensolver, but the minimiser is not the exact one (its SSE against the exact
           solve: docs/PERFORMANCE.md). ``landmarks >= n_samples``: the exact kernel.
@@ -361,17 +367,20 @@ def minimize_regularized(
         a quarter, else "full". All agree to rounding (tests/test_regularizer.py,
         tests/test_spectral_krylov.py).
 
-        "nystroem" also takes ``landmarks`` (int >= 1, required) and ``landmark_seed`` (int >= 0,
-        default 0, the seed of the landmark draw).
+        "nystroem" also takes ``landmarks`` (int >= 1, required), ``landmark_rule`` ("random", the
+        default: a uniform draw; "pivoted": the pivots of greedy pivoted Cholesky on the kernel of S0,
+        :func:`nldr._nystroem.pivoted_landmarks`, deterministic and including isolated samples) and
+        ``landmark_seed`` (int >= 0, default 0, the seed of the "random" draw).
 
-        "nystroem-warm" also takes ``landmarks`` (default 100), ``landmark_seed`` (default 0),
+        "nystroem-warm" also takes ``landmarks`` (default 100), ``landmark_rule`` and
+        ``landmark_seed`` (as "nystroem"),
         ``eigensolver`` (of its exact stages), ``exact_stages`` (k above, int >= 1, default 1; 1000
         oil rows: k = 2 needed at p = 0.05, PERFORMANCE.md), ``exact_tol`` (float > 0, default None:
         the exact stages after the Nystroem ones also stop once the energy fell by at most
         ``exact_tol``, relative, per iteration on average over the last 10 iterations; the answer then
         need not meet the ``tol`` test, its energy gap to the converged one on 1000 oil rows:
         docs/PERFORMANCE.md) and ``last_landmarks`` (int >= 1, default None: the number of landmarks
-        of the last Nystroem stage, drawn from ``landmark_seed``; None means ``landmarks``).
+        of the last Nystroem stage, chosen by the same rule; None means ``landmarks``).
     center : bool, default=False
         Double-centre the kernel (H K H). The uncentred kernel reproduces the paper's Table 2.
     rho0, rho_growth, rho_max : float, defaults 1.0, 10.0, 1e4

@@ -9,7 +9,6 @@ import numpy as np
 
 from .._options import ExactOptions, NystroemOptions, NystroemWarmOptions
 from ..kernels import squared_distances
-from ..regularizer import LONG_SOLVE_ROWS
 
 __all__ = [
     "median_rule_gamma",
@@ -18,8 +17,9 @@ __all__ = [
     "FLAT_OPTIONS",
     "RARE_OPTIONS",
     "AUTO_EXACT_MAX_ROWS",
-    "AUTO_NYSTROEM_MIN_ROWS",
     "AUTO_LANDMARKS",
+    "AUTO_LANDMARK_RULE",
+    "AUTO_STAGE_TOL",
     "DEFAULT_LANDMARKS",
     "EXACT_OPTIONS",
     "MEDIAN_RULE_MULTIPLE",
@@ -28,6 +28,8 @@ __all__ = [
     "TUNE_FOLDS",
     "TUNE_HOLDOUT",
     "TUNE_MIN_ROWS",
+    "TUNE_MAX_ROWS",
+    "UNTUNED_TAU",
     "TUNE_TRANSFORM",
     "TUNE_ROW_SHARE",
     "TUNE_ROW_HIDDEN",
@@ -35,8 +37,6 @@ __all__ = [
     "TUNE_LANDMARKS",
     "TUNE_STOP_FACTOR",
     "NYSTROEM_OPTIONS",
-    "LONG_FIT_ROWS",
-    "long_fit_message",
 ]
 
 #: data losses of ``loss``
@@ -48,12 +48,13 @@ FLAT_OPTIONS = {"max_iter": "max_inner", "tol": "tol", "gtol": "gtol", "n_landma
 #: the options that stay in ``options`` (rarely tuned: a solver path's internals)
 RARE_OPTIONS = ("stage_tol", "isolation_guard", "scale", "eigensolver", "landmark_seed", "exact_stages",
                  "exact_tol", "last_landmarks")  # fmt: skip
-#: ``method="auto"`` solves exactly up to this many rows and warm-starts from the Nystroem kernel above
-#: (measured: docs/PERFORMANCE.md#solver-path).
+#: ``method="auto"`` solves exactly up to this many rows (measured: docs/PERFORMANCE.md#solver-path) ...
 AUTO_EXACT_MAX_ROWS = 150
-#: from here (where an exact solve warns) "auto" runs every stage on AUTO_LANDMARKS landmarks, no
-#: exact last stage (its eigensolver grows as n^3; measured: docs/PERFORMANCE.md#auto-landmarks)
-AUTO_NYSTROEM_MIN_ROWS, AUTO_LANDMARKS = LONG_SOLVE_ROWS, 200
+#: ... and above, every stage on the Nystroem kernel of AUTO_LANDMARKS landmarks chosen by pivoted
+#: Cholesky of the start's kernel (deterministic), the stages before the last stopping at the relative
+#: decrease AUTO_STAGE_TOL (they only give the next stage its start; measured:
+#: docs/PERFORMANCE.md#auto-landmarks)
+AUTO_LANDMARKS, AUTO_LANDMARK_RULE, AUTO_STAGE_TOL = 150, "pivoted", 1e-6
 #: ``n_landmarks=None`` with ``method="nystroem"`` or ``"nystroem-warm"``: the warm start's default
 #: landmark count, one default for both Nystroem paths
 DEFAULT_LANDMARKS = NystroemWarmOptions.landmarks
@@ -70,8 +71,10 @@ TUNE_TAUS = (0.1, 0.3)
 #: the tuning's Monte-Carlo hold-out folds: how many, and the share of observed entries each hides
 TUNE_FOLDS = 2
 TUNE_HOLDOUT = 0.1
-#: below this many rows "auto" is not searched: tau 0.1 and the median rule's width
-TUNE_MIN_ROWS = 20
+#: below TUNE_MIN_ROWS rows, and from TUNE_MAX_ROWS rows, "auto" is not searched: tau UNTUNED_TAU and
+#: the median rule's width (too few rows to hold out; at TUNE_MAX_ROWS rows and more the search costs
+#: more than the solve and does not beat the rule: docs/PERFORMANCE.md#defaults)
+TUNE_MIN_ROWS, TUNE_MAX_ROWS, UNTUNED_TAU = 20, 1000, 0.1
 #: ``n_neighbors="auto"``, ``starts="auto"``: the row folds choose ``transform``'s (n_neighbors, starts)
 #: among these (the second is the choice when the rows are too few to tune)
 TUNE_TRANSFORM = ((1, "mean"), (5, "mean"), (10, "mean"), (5, "each"))
@@ -81,36 +84,11 @@ TUNE_ROW_HIDDEN = 0.25
 #: the tuning's fold solves stop at these looser tolerances (they only rank candidates)
 TUNE_TOLERANCES = {"tol": 1e-7, "gtol": 1e-4}
 #: the tuning's fold solves above AUTO_EXACT_MAX_ROWS rows: the Nystroem kernel of this many landmarks
+#: (chosen by AUTO_LANDMARK_RULE)
 TUNE_LANDMARKS = 100
 #: a fold's tau path stops once its error exceeds this factor times the path's best so far
 TUNE_STOP_FACTOR = 1.5
 NYSTROEM_OPTIONS = frozenset(f.name for f in dataclasses.fields(NystroemOptions))
-#: from this many rows a fit that runs the "auto" search warns about its cost before it starts
-#: (:class:`~nldr.regularizer.LongSolveWarning`): the search's fold solves and the fit together grow
-#: with the rows (measured: docs/PERFORMANCE.md#long-default-fits)
-LONG_FIT_ROWS = 1000
-#: CPU seconds of a default fit (search and solve) per 1000 rows, scaled linearly for the warning's
-#: estimate (measured: docs/PERFORMANCE.md#long-default-fits)
-_SEARCH_SECONDS_PER_1000_ROWS = 25.0
-
-
-def long_fit_message(n: int, *, tuned: bool) -> str | None:
-    """The cost warning of a fit on n rows that runs the "auto" search (``tuned``), or None when the
-    fit is expected to be short (below :data:`LONG_FIT_ROWS` rows) or runs no search (a long exact
-    solve has :func:`~nldr.regularizer.minimize_regularized`'s own warning)."""
-    if not tuned or n < LONG_FIT_ROWS:
-        return None
-    minutes = _SEARCH_SECONDS_PER_1000_ROWS * n / 1000.0 / 60.0
-    candidates = len(TUNE_GAMMA_MULTIPLES) * len(TUNE_TAUS)
-    return (
-        f"KernelRegularizerImputer: {n} rows with gamma or tau 'auto': the hold-out search ({candidates} "
-        f"candidates x {TUNE_FOLDS} folds) and the fit take about {minutes:.0f} CPU minute(s) or more, "
-        "growing with the rows (docs/PERFORMANCE.md#long-default-fits). verbose=True prints each fold "
-        "and penalty stage as it ends; fixed gamma and tau (e.g. gamma_ and tau_ of a fit on a "
-        "subsample of the rows) skip the search"
-    )
-
-
 def median_rule_gamma(S: np.ndarray) -> float:
     """``MEDIAN_RULE_MULTIPLE / median ||s_i - s_j||^2`` over the pairs of rows of a complete S (units S^-2).
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import warnings
 from numbers import Integral, Real
 
 import numpy as np
@@ -13,12 +12,13 @@ from .._baselines._masked import mean_fill, observed_standardisation
 from .._options import last_stage_only, solver_options
 from .._preimage import Subspace, average_solutions, complete_from_starts, nearest_rows
 from ..data_terms import MaskedHuber, MaskedLeastSquares
-from ..regularizer import LongSolveWarning, minimize_regularized
+from ..regularizer import minimize_regularized
 from ._base import MaskedImputerBase
 from ._defaults import (
     AUTO_EXACT_MAX_ROWS,
+    AUTO_LANDMARK_RULE,
     AUTO_LANDMARKS,
-    AUTO_NYSTROEM_MIN_ROWS,
+    AUTO_STAGE_TOL,
     DEFAULT_LANDMARKS,
     EXACT_OPTIONS,
     FLAT_OPTIONS,
@@ -28,10 +28,11 @@ from ._defaults import (
     NYSTROEM_OPTIONS,
     TUNE_GAMMA_MULTIPLES,
     TUNE_LANDMARKS,
+    TUNE_MAX_ROWS,
     TUNE_MIN_ROWS,
     TUNE_TAUS,
     TUNE_TOLERANCES,
-    long_fit_message,
+    UNTUNED_TAU,
     median_rule_gamma,
 )
 from ._new_rows import NoComponentsError, regularizer_subspace
@@ -61,13 +62,16 @@ class KernelRegularizerImputer(MaskedImputerBase):
         ``standardize``, the data's units otherwise. None: the median rule on the
         mean-imputed (standardised) matrix: :data:`MEDIAN_RULE_MULTIPLE` / (median squared distance
         between its rows). "auto": the hold-out search's choice among :data:`TUNE_GAMMA_MULTIPLES`
-        / (that median squared distance).
+        / (that median squared distance), searched as ``tau`` (the median rule where not).
     tau : float > 0 or "auto", default "auto"
         Weight of the trace norm of C (the feature-space data's nuclear norm), in the data term's
         units (squared units of the solved matrix). Larger tau: a lower-dimensional manifold.
-        "auto": the hold-out search's choice among :data:`TUNE_TAUS`. The search's folds hide
+        "auto": the hold-out search's choice among :data:`TUNE_TAUS` from :data:`TUNE_MIN_ROWS`
+        rows up to :data:`TUNE_MAX_ROWS` (excluded), :data:`UNTUNED_TAU` and the median rule's width
+        outside (at scale the search costs more than the solve and does not beat the rule:
+        docs/PERFORMANCE.md#defaults). The search's folds hide
         :data:`TUNE_HOLDOUT` of the observed entries each (drawn from seed 0, rows sorted by content),
-        its fold solves stop at looser tolerances and use the Nystroem kernel (100 landmarks) above
+        its fold solves stop at looser tolerances and use the Nystroem kernel (100 pivoted landmarks) above
         :data:`AUTO_EXACT_MAX_ROWS` rows; the smallest mean squared hold-out error wins, in standardised
         units when ``standardize`` (so that no column decides by its units). A choice whose hold-out
         error is no better than the observed column means' on the same folds is reported:
@@ -84,15 +88,16 @@ class KernelRegularizerImputer(MaskedImputerBase):
         ``n_landmarks`` landmark rows, then the last stage exactly from there (an exact stopping
         test, possibly another local minimum: docs/PERFORMANCE.md). "nystroem": every stage on the
         Nystroem kernel of ``n_landmarks`` rows (not the exact minimiser). "auto": "exact" up to
-        :data:`AUTO_EXACT_MAX_ROWS` rows, "nystroem-warm" above, and "nystroem" on
-        :data:`AUTO_LANDMARKS` landmarks from :data:`AUTO_NYSTROEM_MIN_ROWS` rows (an approximate
-        minimiser whose cost grows linearly in the rows).
+        :data:`AUTO_EXACT_MAX_ROWS` rows; above, "nystroem" on :data:`AUTO_LANDMARKS` landmarks
+        chosen by pivoted Cholesky of the start's kernel (``landmark_rule="pivoted"``: a function of
+        the data, not of ``random_state``), the stages before the last stopping at ``stage_tol``
+        :data:`AUTO_STAGE_TOL`: an approximate minimiser whose cost grows linearly in the rows
+        (docs/PERFORMANCE.md#auto-landmarks).
     n_landmarks : int >= 1 or None, default None
         Landmark rows of the Nystroem kernel (``options["landmarks"]`` of
         :func:`~nldr.regularizer.minimize_regularized`), for the Nystroem paths only. None:
-        :data:`DEFAULT_LANDMARKS` (100) for "nystroem" and "nystroem-warm" (and "auto" between
-        :data:`AUTO_EXACT_MAX_ROWS` and :data:`AUTO_NYSTROEM_MIN_ROWS` rows), :data:`AUTO_LANDMARKS`
-        for "auto" from :data:`AUTO_NYSTROEM_MIN_ROWS` rows; ``method="exact"`` refuses it. "auto"
+        :data:`DEFAULT_LANDMARKS` (100) for "nystroem" and "nystroem-warm", :data:`AUTO_LANDMARKS`
+        for "auto" above :data:`AUTO_EXACT_MAX_ROWS` rows; ``method="exact"`` refuses it. "auto"
         ignores it at or below :data:`AUTO_EXACT_MAX_ROWS` rows.
     rho0 : float > 0, default 1.0
         First penalty weight of the schedule (kernel units against the data term's units; the
@@ -117,10 +122,11 @@ class KernelRegularizerImputer(MaskedImputerBase):
         ``last_landmarks``. They stay in a dict because they change how a path runs rather than
         what it minimises, and none is worth a grid. An option the path does not take is a
         ValueError naming the path (raised by every fit, before any solve); the knobs above are
-        parameters, not options. "auto" takes the options of "nystroem-warm"; its Nystroem-only
-        ones apply only above :data:`AUTO_EXACT_MAX_ROWS` rows, and from
-        :data:`AUTO_NYSTROEM_MIN_ROWS` rows only ``landmark_seed`` and the stopping options. The
-        Nystroem paths' ``landmark_seed`` defaults to a draw from ``random_state``.
+        parameters, not options. "auto" takes the options of "nystroem-warm"; at or below
+        :data:`AUTO_EXACT_MAX_ROWS` rows it uses those of "exact", above only those of "nystroem"
+        (``landmark_rule``, ``landmark_seed`` and the stopping options). With
+        ``landmark_rule="random"`` (the explicit Nystroem paths' default) ``landmark_seed`` defaults
+        to a draw from ``random_state``.
     verbose : bool, default False
         Print one line per penalty stage.
     n_neighbors : int >= 1 or "auto", default "auto"
@@ -137,7 +143,8 @@ class KernelRegularizerImputer(MaskedImputerBase):
     weights : {"uniform", "distance"}, default "uniform"
         ``transform`` with ``starts="each"``: how the local minima are averaged.
     random_state : int, RandomState or None, default 0
-        Seeds the landmark draw of the Nystroem paths' solve (the exact path draws nothing). The
+        Seeds the landmark draw of the explicit Nystroem paths' solve ("exact" and "auto" draw
+        nothing). The
         tuning's folds (and their Nystroem landmarks) do not depend on it: they are drawn from seed 0
         on the rows sorted by their content, so the chosen width and tau depend on the data alone,
         not on the row order or a seed. The default 0 makes two fits of one matrix identical; None
@@ -354,16 +361,17 @@ class KernelRegularizerImputer(MaskedImputerBase):
         schedule."""
         method = self.method
         if method == "auto":
-            method = "exact" if n <= AUTO_EXACT_MAX_ROWS else "nystroem-warm"
-            method = "nystroem" if n >= AUTO_NYSTROEM_MIN_ROWS else method
+            method = "exact" if n <= AUTO_EXACT_MAX_ROWS else "nystroem"
         schedule = {"rho0": self.rho0, "rho_growth": self.rho_growth, "rho_max": self.rho_max}
         options = self._solver_options()
         if method == "exact":
             options = {k: v for k, v in options.items() if k in EXACT_OPTIONS}
-        elif method == "nystroem" and self.method == "auto":
+        elif self.method == "auto":
             kept = {k: v for k, v in options.items() if k in NYSTROEM_OPTIONS}
-            options = {"landmarks": AUTO_LANDMARKS, **kept}
-        if method != "exact" and "landmark_seed" not in options:
+            auto = {"landmarks": AUTO_LANDMARKS, "landmark_rule": AUTO_LANDMARK_RULE}
+            options = {**auto, "stage_tol": AUTO_STAGE_TOL, **kept}
+        drawn = method != "exact" and options.get("landmark_rule", "random") == "random"
+        if drawn and "landmark_seed" not in options:
             options["landmark_seed"] = int(
                 check_random_state(self.random_state).randint(np.iinfo(np.int32).max)
             )
@@ -390,7 +398,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
             options = {k: v for k, v in (self.options or {}).items() if k in EXACT_OPTIONS}
             return {"method": "exact", "n_landmarks": None, "options": options or None, **TUNE_TOLERANCES}
         options = {k: v for k, v in (self.options or {}).items() if k in NYSTROEM_OPTIONS}
-        options = {"landmark_seed": self._tune_seed(), **options}
+        options = {"landmark_seed": self._tune_seed(), "landmark_rule": AUTO_LANDMARK_RULE, **options}
         landmarks = TUNE_LANDMARKS if self.n_landmarks is None else self.n_landmarks
         return {"method": "nystroem", "n_landmarks": landmarks, "options": options, **TUNE_TOLERANCES}
 
@@ -410,18 +418,15 @@ class KernelRegularizerImputer(MaskedImputerBase):
             S0 = previous if not self.standardize else (previous - self.mean_) / self.scale_
         median_rule = median_rule_gamma(mean_fill(Z, mask)) if gamma is None or is_auto(gamma) else None
         grid = self._grid(gamma, tau, median_rule)
-        tuned = (is_auto(gamma) or is_auto(tau)) and W.shape[0] >= TUNE_MIN_ROWS
+        tuned = (is_auto(gamma) or is_auto(tau)) and TUNE_MIN_ROWS <= W.shape[0] < TUNE_MAX_ROWS
         self.__dict__.pop("_holdout_against_means", None)
-        message = long_fit_message(W.shape[0], tuned=tuned)
-        if message is not None:
-            warnings.warn(message, LongSolveWarning, stacklevel=4)
         if tuned:
             chosen = tune(self, Z, mask, grid)  # scored in the solved (standardised) units
         else:
             self.__dict__.pop("cv_results_", None)
             chosen = {
                 "gamma": median_rule if is_auto(gamma) else grid["gamma"][0],
-                "tau": 0.1 if is_auto(tau) else grid["tau"][0],
+                "tau": UNTUNED_TAU if is_auto(tau) else grid["tau"][0],
             }
         self.gamma_, self.tau_ = float(chosen["gamma"]), float(chosen["tau"])
         self._transform_knobs(W.shape[0])
