@@ -24,12 +24,20 @@ grid could do, not a method. Prints one line per mask and the means.
 (mask seed 2016), its tuning included, and the same fit untuned (``gamma`` and ``tau`` set to the
 values the tuning chose), so the tuning's cost is the difference.
 
-``large``: the untuned fit (``gamma=None, tau=0.1``: the median rule) on the first ``--rows`` rows of
-the three splits (:func:`nldr.datasets.load_oil_rows`; 3000 is every row), p = 0.25.
+``speed``: side by side in one process, per mask: ``KernelRegularizerImputer()`` and missForest (100
+trees, 5 sweeps, standardised input) at ``max_features`` 1/3 and 1, one after the other, on the first
+``--rows`` rows (the training split up to 1000, else :func:`nldr.datasets.load_oil_rows`: the three
+splits, 3000 is every row): CPU seconds and SSE of each.
 
-``path``: the solver paths of ``method="auto"`` on the first n training rows (``--sizes``), ``--masks``
-masks at each p: ``method="exact"`` against ``"nystroem-warm"`` (100 landmarks, seed 0), untuned
-(the median rule, tau 0.1, standardised): SSE and CPU seconds.
+``path``: the solver paths on the first n training rows (``--sizes``), ``--masks`` masks at each p:
+``method="exact"`` against ``"auto"``, untuned (the median rule, tau 0.1, standardised): SSE and CPU
+seconds (above 150 rows "auto" is the approximate Nystroem path).
+
+``heavy``: a synthetic heavy-tailed table, 303 x 22 (3 latent normals; each column a random direction
+of them plus noise 0.3 through exp(1.2 x), sinh(1.5 x) or x + x^2 / 2 in turn, scaled to sds from 0.6
+to 11,800; 20 % MCAR; table and mask from ``default_rng(seed)``): ``gamma=None, tau=0.1`` on
+``method="exact"``, ``"auto"`` and ``"nystroem-warm"`` (100 random landmarks), the default, and
+missForest (1/3): RMSE over the hidden entries in units of each column's sd.
 
 ``transform``: fit on the 1000 training rows (complete), then complete the first 200 validation rows
 with a share p of their entries hidden (mask seed 2016 + k): SSE on the hidden entries of ours and of
@@ -54,8 +62,10 @@ Usage::
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py compare --rows 1000 --masks 3 --methods default
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py oracle --p 0.5
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py fit --rows 1000
-    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py large --rows 3000
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py speed --rows 1000 --masks 3
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py speed --rows 3000 --p 0.25 --masks 3
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py path --sizes 150 300 --masks 3
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py heavy --seeds 1 2 3
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py transform --masks 3
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py ard --rows 100 --masks 5
 """
@@ -71,7 +81,7 @@ from nldr.datasets import load_oil, load_oil_rows
 from nldr.experiments._table2 import random_mask
 from nldr.impute import KernelRegularizerImputer
 from nldr.impute import _regularizer as tuning
-from nldr.impute._grids import baseline_grid
+from nldr.impute._grids import baseline_grid, missforest_imputer
 from nldr.model_selection import HoldoutSearch, holdout_folds
 
 METHODS = ("default", "paper", "missForest100")
@@ -191,18 +201,63 @@ def run_fit(args):
         )
 
 
-def run_large(args):
+def forest_fit(W, share: float) -> np.ndarray:
+    """missForest (100 trees, 5 sweeps, ``max_features=share``) on W standardised by its observed
+    entries, mapped back (as the benchmark feeds every method)."""
+    shift, scale = np.nanmean(W, axis=0), np.nanstd(W, axis=0)
+    return missforest_imputer(max_features=share).fit_transform((W - shift) / scale) * scale + shift
+
+
+def time_each(fits: dict, W) -> dict:
+    """name -> (CPU seconds, completion) of each ``fits[name](W)``, run in turn."""
+    return {name: timed(lambda fit=fit: fit(W), clock="cpu") for name, fit in fits.items()}
+
+
+def run_speed(args):
     if args.quick:
-        args.rows = 300
-    X = load_oil_rows(args.rows, args.data_dir)
-    W, _ = masked(X, 0.25, SEED)
-    est = KernelRegularizerImputer(gamma=None, tau=0.1, random_state=0)
-    cpu, X_hat = timed(lambda: est.fit_transform(W), clock="cpu")
-    print(
-        f"large n={args.rows} p=0.25: untuned {cpu:.1f} CPU s, SSE {sse(X_hat, X):.2f}, "
-        f"{est.method_}, nit {est.result_.nit}",
-        flush=True,
-    )
+        args.rows, args.p, args.masks = 200, [0.25], 1
+    n = args.rows
+    X = load_oil("train", args.data_dir)[0][:n] if n <= 1000 else load_oil_rows(n, args.data_dir)
+    fits = {
+        "default": lambda W: KernelRegularizerImputer().fit_transform(W),
+        "missForest 1/3": lambda W: forest_fit(W, 1 / 3),
+        "missForest 1": lambda W: forest_fit(W, 1.0),
+    }
+    for p in args.p:
+        for k in range(args.masks):
+            W, _ = masked(X, p, SEED + k)
+            done_fits = time_each(fits, W).items()
+            line = [f"{name} {cpu:.2f} CPU s, SSE {sse(X_hat, X):.3f}" for name, (cpu, X_hat) in done_fits]
+            print(f"speed n={n} p={p:g} seed={SEED + k}: " + "; ".join(line), flush=True)
+
+
+def heavy_table(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The synthetic heavy-tailed table (303, 22) and its mask (True = observed); module docstring."""
+    rng = np.random.default_rng(seed)
+    latent = rng.standard_normal((303, 3))
+    columns = []
+    for j, scale in enumerate(np.geomspace(0.6, 11800.0, 22)):
+        direction = rng.standard_normal(3)
+        t = latent @ direction / np.linalg.norm(direction) + 0.3 * rng.standard_normal(303)
+        x = (np.exp(1.2 * t), np.sinh(1.5 * t), t + 0.5 * t**2)[j % 3]
+        columns.append(scale * x / x.std())
+    X = np.column_stack(columns)
+    return X, rng.random(X.shape) > 0.2
+
+
+def run_heavy(args):
+    fits = {m: lambda W, m=m: KernelRegularizerImputer(gamma=None, tau=0.1, method=m).fit_transform(W)
+            for m in ("exact", "auto", "nystroem-warm")}  # fmt: skip
+    fits["default"] = lambda W: KernelRegularizerImputer().fit_transform(W)
+    fits["missForest 1/3"] = lambda W: forest_fit(W, 1 / 3)
+    for seed in args.seeds:
+        X, mask = heavy_table(seed)
+        sd = X.std(axis=0)
+        line = []
+        for name, (cpu, X_hat) in time_each(fits, np.where(mask, X, np.nan)).items():
+            rmse = float(np.sqrt(np.mean(((X_hat - X) / sd)[~mask] ** 2)))
+            line.append(f"{name} RMSE {rmse:.3f} ({cpu:.1f} CPU s)")
+        print(f"heavy seed={seed}: " + "; ".join(line), flush=True)
 
 
 def run_path(args):
@@ -214,8 +269,8 @@ def run_path(args):
             for k in range(args.masks):
                 W, _ = masked(X, p, SEED + k)
                 line = []
-                for method in ("exact", "nystroem-warm"):
-                    est = KernelRegularizerImputer(gamma=None, tau=0.1, method=method, random_state=0)
+                for method in ("exact", "auto"):
+                    est = KernelRegularizerImputer(gamma=None, tau=0.1, method=method)
                     cpu, X_hat = timed(lambda est=est, W=W: est.fit_transform(W), clock="cpu")
                     line.append(f"{method} SSE {sse(X_hat, X):.3f} ({cpu:.1f} CPU s)")
                 print(f"path n={n} p={p:g} seed={SEED + k}: " + ", ".join(line), flush=True)
@@ -354,15 +409,21 @@ def main(argv=None):
     fit.add_argument(ps[0], **ps[1])
     fit.set_defaults(run=run_fit)
 
-    large = common_options(sub.add_parser("large", help="the untuned fit on up to 3000 rows"))
-    large.add_argument("--rows", type=int, default=3000)
-    large.set_defaults(run=run_large)
+    speed = common_options(sub.add_parser("speed", help="the default and missForest side by side"))
+    speed.add_argument("--rows", type=int, default=1000)
+    speed.add_argument(ps[0], **ps[1])
+    speed.add_argument("--masks", type=int, default=3)
+    speed.set_defaults(run=run_speed)
 
-    path = common_options(sub.add_parser("path", help="exact against nystroem-warm"))
+    path = common_options(sub.add_parser("path", help="exact against auto"))
     path.add_argument("--sizes", type=int, nargs="+", default=[150, 300])
     path.add_argument(ps[0], **ps[1])
     path.add_argument("--masks", type=int, default=3)
     path.set_defaults(run=run_path)
+
+    heavy = common_options(sub.add_parser("heavy", help="a heavy-tailed table: the solver paths"))
+    heavy.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
+    heavy.set_defaults(run=run_heavy)
 
     transform = common_options(sub.add_parser("transform", help="new rows against KNNImputer"))
     transform.add_argument(ps[0], **ps[1])
