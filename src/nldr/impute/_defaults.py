@@ -46,8 +46,8 @@ METHODS = ("auto", "exact", "nystroem", "nystroem-warm")
 #: the constructor parameters that set minimize_regularized's options, and the option each sets
 FLAT_OPTIONS = {"max_iter": "max_inner", "tol": "tol", "gtol": "gtol", "n_landmarks": "landmarks"}
 #: the options that stay in ``options`` (rarely tuned: a solver path's internals)
-RARE_OPTIONS = ("stage_tol", "isolation_guard", "scale", "eigensolver", "landmark_seed", "exact_stages",
-                 "exact_tol", "last_landmarks")  # fmt: skip
+RARE_OPTIONS = ("stage_tol", "isolation_guard", "scale", "eigensolver", "landmark_seed", "landmark_rule",
+                 "exact_stages", "exact_tol", "last_landmarks")  # fmt: skip
 #: ``method="auto"`` solves exactly up to this many rows (measured: docs/PERFORMANCE.md#solver-path) ...
 AUTO_EXACT_MAX_ROWS = 150
 #: ... and above, every stage on the Nystroem kernel of AUTO_LANDMARKS landmarks chosen by pivoted
@@ -73,7 +73,7 @@ TUNE_FOLDS = 2
 TUNE_HOLDOUT = 0.1
 #: below TUNE_MIN_ROWS rows, and from TUNE_MAX_ROWS rows, "auto" is not searched: tau UNTUNED_TAU and
 #: the median rule's width (too few rows to hold out; at TUNE_MAX_ROWS rows and more the search costs
-#: more than the solve and does not beat the rule: docs/PERFORMANCE.md#defaults)
+#: more than the solve and does not beat the rule: docs/PERFORMANCE.md#defaults-at-scale)
 TUNE_MIN_ROWS, TUNE_MAX_ROWS, UNTUNED_TAU = 20, 1000, 0.1
 #: ``n_neighbors="auto"``, ``starts="auto"``: the row folds choose ``transform``'s (n_neighbors, starts)
 #: among these (the second is the choice when the rows are too few to tune)

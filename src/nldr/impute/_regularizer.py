@@ -69,7 +69,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         "auto": the hold-out search's choice among :data:`TUNE_TAUS` from :data:`TUNE_MIN_ROWS`
         rows up to :data:`TUNE_MAX_ROWS` (excluded), :data:`UNTUNED_TAU` and the median rule's width
         outside (at scale the search costs more than the solve and does not beat the rule:
-        docs/PERFORMANCE.md#defaults). The search's folds hide
+        docs/PERFORMANCE.md#defaults-at-scale). The search's folds hide
         :data:`TUNE_HOLDOUT` of the observed entries each (drawn from seed 0, rows sorted by content),
         its fold solves stop at looser tolerances and use the Nystroem kernel (100 pivoted landmarks) above
         :data:`AUTO_EXACT_MAX_ROWS` rows; the smallest mean squared hold-out error wins, in standardised
@@ -118,8 +118,8 @@ class KernelRegularizerImputer(MaskedImputerBase):
     options : dict or None, default None
         The solver path's rarely tuned options, as :func:`~nldr.regularizer.minimize_regularized`
         takes them: ``stage_tol``, ``isolation_guard``, ``scale``, ``eigensolver``,
-        ``landmark_seed``, and the Nystroem warm start's ``exact_stages``, ``exact_tol``,
-        ``last_landmarks``. They stay in a dict because they change how a path runs rather than
+        ``landmark_seed``, ``landmark_rule``, and the Nystroem warm start's ``exact_stages``,
+        ``exact_tol``, ``last_landmarks``. They stay in a dict because they change how a path runs rather than
         what it minimises, and none is worth a grid. An option the path does not take is a
         ValueError naming the path (raised by every fit, before any solve); the knobs above are
         parameters, not options. "auto" takes the options of "nystroem-warm"; at or below
