@@ -54,7 +54,7 @@ AUTO_EXACT_MAX_ROWS = 150
 #: Cholesky of the start's kernel (deterministic), the stages before the last stopping at the relative
 #: decrease AUTO_STAGE_TOL (they only give the next stage its start; measured:
 #: docs/PERFORMANCE.md#auto-landmarks)
-AUTO_LANDMARKS, AUTO_LANDMARK_RULE, AUTO_STAGE_TOL = 150, "pivoted", 1e-6
+AUTO_LANDMARKS, AUTO_LANDMARK_RULE, AUTO_STAGE_TOL = 150, "pivoted", 1e-5
 #: ``n_landmarks=None`` with ``method="nystroem"`` or ``"nystroem-warm"``: the warm start's default
 #: landmark count, one default for both Nystroem paths
 DEFAULT_LANDMARKS = NystroemWarmOptions.landmarks
