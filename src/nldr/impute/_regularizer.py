@@ -144,11 +144,10 @@ class KernelRegularizerImputer(MaskedImputerBase):
         ``transform`` with ``starts="each"``: how the local minima are averaged.
     random_state : int, RandomState or None, default 0
         Seeds the landmark draw of the explicit Nystroem paths' solve ("exact" and "auto" draw
-        nothing). The
-        tuning's folds (and their Nystroem landmarks) do not depend on it: they are drawn from seed 0
-        on the rows sorted by their content, so the chosen width and tau depend on the data alone,
-        not on the row order or a seed. The default 0 makes two fits of one matrix identical; None
-        draws the landmarks afresh.
+        nothing). The tuning's folds do not depend on it: they are drawn from seed 0 on the rows
+        sorted by their content (their fold solves' landmarks are pivots), so the chosen width and
+        tau depend on the data alone, not on the row order or a seed. With the explicit Nystroem
+        paths the default 0 makes two fits of one matrix identical; None draws the landmarks afresh.
     warm_start : bool, default False
         A fit after a previous fit on a matrix of the same shape starts from the previous solve's S
         (``result_.x``) and solves the last penalty stage only (rho0 = rho_max), its stopping tests in
@@ -387,8 +386,9 @@ class KernelRegularizerImputer(MaskedImputerBase):
         return {"gamma": gammas, "tau": [float(t) for t in TUNE_TAUS] if is_auto(tau) else [float(tau)]}
 
     def _tune_seed(self) -> int:
-        """The seed of the tuning's folds and fold landmarks: fixed, so that the chosen knobs depend on
-        the data only (the rows in their canonical order, so not on the order given either)."""
+        """The seed of the tuning's folds (and of their landmarks if ``options`` asks for a random draw):
+        fixed, so that the chosen knobs depend on the data only (the rows in their canonical order, so
+        not on the order given either)."""
         return 0
 
     def _fold_solver(self, n: int) -> dict:
