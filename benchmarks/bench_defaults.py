@@ -77,6 +77,7 @@ import pandas as pd
 from _common import append_row, check_blas, common_options, done, key, parser, timed
 from sklearn.impute import KNNImputer
 
+from nldr._baselines._masked import observed_standardisation
 from nldr.datasets import load_oil, load_oil_rows
 from nldr.experiments._table2 import random_mask
 from nldr.impute import KernelRegularizerImputer
@@ -204,7 +205,8 @@ def run_fit(args):
 def forest_fit(W, share: float) -> np.ndarray:
     """missForest (100 trees, 5 sweeps, ``max_features=share``) on W standardised by its observed
     entries, mapped back (as the benchmark feeds every method)."""
-    shift, scale = np.nanmean(W, axis=0), np.nanstd(W, axis=0)
+    mask = ~np.isnan(W)
+    shift, scale = observed_standardisation(np.where(mask, W, 0.0), mask)
     return missforest_imputer(max_features=share).fit_transform((W - shift) / scale) * scale + shift
 
 

@@ -15,7 +15,6 @@ __all__ = [
     "LOSSES",
     "METHODS",
     "FLAT_OPTIONS",
-    "RARE_OPTIONS",
     "AUTO_EXACT_MAX_ROWS",
     "AUTO_LANDMARKS",
     "AUTO_LANDMARK_RULE",
@@ -45,9 +44,6 @@ LOSSES = ("squared", "huber")
 METHODS = ("auto", "exact", "nystroem", "nystroem-warm")
 #: the constructor parameters that set minimize_regularized's options, and the option each sets
 FLAT_OPTIONS = {"max_iter": "max_inner", "tol": "tol", "gtol": "gtol", "n_landmarks": "landmarks"}
-#: the options that stay in ``options`` (rarely tuned: a solver path's internals)
-RARE_OPTIONS = ("stage_tol", "isolation_guard", "scale", "eigensolver", "landmark_seed", "landmark_rule",
-                 "exact_stages", "exact_tol", "last_landmarks")  # fmt: skip
 #: ``method="auto"`` solves exactly up to this many rows (measured: docs/PERFORMANCE.md#solver-path) ...
 AUTO_EXACT_MAX_ROWS = 150
 #: ... and above, every stage on the Nystroem kernel of AUTO_LANDMARKS landmarks chosen by pivoted

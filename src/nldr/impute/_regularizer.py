@@ -411,12 +411,12 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self.__dict__.pop("_solved_key", None)
         self.mean_, self.scale_ = self._standardisation(W, mask)
         Z = W if not self.standardize else np.where(mask, (W - self.mean_) / self.scale_, 0.0)
-        S0 = mean_fill(Z, mask)
+        filled = S0 = mean_fill(Z, mask)
         previous = getattr(self, "_estimate", None) if self.warm_start else None
         warm = previous is not None and previous.shape == W.shape
         if warm:  # the previous estimate, in this fit's (standardised) units
             S0 = previous if not self.standardize else (previous - self.mean_) / self.scale_
-        median_rule = median_rule_gamma(mean_fill(Z, mask)) if gamma is None or is_auto(gamma) else None
+        median_rule = median_rule_gamma(filled) if gamma is None or is_auto(gamma) else None
         grid = self._grid(gamma, tau, median_rule)
         tuned = (is_auto(gamma) or is_auto(tau)) and TUNE_MIN_ROWS <= W.shape[0] < TUNE_MAX_ROWS
         self.__dict__.pop("_holdout_against_means", None)
@@ -431,10 +431,9 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self.gamma_, self.tau_ = float(chosen["gamma"]), float(chosen["tau"])
         self._transform_knobs(W.shape[0])
         self._training = (W, mask)
-        tau = self.tau_
         self.method_, kwargs = self._solver_arguments(W.shape[0], warm)
         result = minimize_regularized(
-            self._data_term(Z, mask), S0, gamma=self.gamma_, tau=tau, center=bool(self.center), **kwargs
+            self._data_term(Z, mask), S0, gamma=self.gamma_, tau=self.tau_, center=bool(self.center), **kwargs
         )
         S = result.x
         self.manifold_rows_ = S

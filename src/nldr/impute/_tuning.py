@@ -85,6 +85,7 @@ def transform_candidates(est) -> list[tuple[int, str]]:
         pairs = [(k, s) for s in ("mean", "each") if est.starts in ("auto", s)]
     return pairs
 
+
 def tune_transform(est, W, mask, gamma: float, tau: float) -> tuple[int, str]:
     """Choose ``transform``'s (n_neighbors, starts) by :data:`TUNE_FOLDS` row folds of the training rows.
 
