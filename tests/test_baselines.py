@@ -96,6 +96,29 @@ def test_the_one_observed_standardisation_is_what_the_imputers_and_the_benchmark
     np.testing.assert_array_equal(est.scale_, scale)
 
 
+@pytest.mark.parametrize("k", [1, 3])
+def test_neighbour_fill_is_the_mean_of_the_nearest_rows_observing_the_entry_by_brute_force(rng, k):
+    """Written out: the distance on the columns both rows observe, scaled by d / (their count); the k
+    nearest rows among those observing the column; a row observing nothing takes the column means."""
+    from nldr._baselines._masked import mean_fill, neighbour_fill
+
+    X = rng.normal(size=(30, 4))
+    mask = random_mask(rng, X.shape, 0.3)
+    mask[0], mask[5] = True, False  # every column observed; row 5 observes nothing
+    W = np.where(mask, X, 0.0)
+    expected = mean_fill(W, mask)
+    for i, j in zip(*np.nonzero(~mask), strict=True):
+        if not mask[i].any():
+            continue
+        donors = [r for r in np.flatnonzero(mask[:, j]) if r != i and (mask[r] & mask[i]).any()]
+        both = [mask[r] & mask[i] for r in donors]
+        pairs = zip(donors, both, strict=True)
+        dist = [np.sqrt(4 / b.sum() * np.sum((X[r, b] - X[i, b]) ** 2)) for r, b in pairs]
+        nearest = np.asarray(donors)[np.argsort(dist)[:k]]
+        expected[i, j] = X[nearest, j].mean()
+    np.testing.assert_allclose(neighbour_fill(W, mask, k), expected, rtol=1e-13, atol=1e-13)
+
+
 def test_nearest_neighbour_copies_from_brute_force_nearest_complete_row(rng):
     X = rng.normal(size=(40, 5))
     mask = random_mask(rng, X.shape, 0.15)

@@ -177,7 +177,8 @@ def test_auto_method_by_size(rng):
 def test_auto_method_runs_every_stage_on_pivoted_landmarks_above_its_threshold(rng, monkeypatch):
     """Above AUTO_EXACT_MAX_ROWS rows "auto" is method="nystroem" on AUTO_LANDMARKS landmarks chosen by
     AUTO_LANDMARK_RULE, the stages before the last stopping at AUTO_STAGE_TOL (the warm start's own
-    options dropped), at or below it the exact solver."""
+    options dropped), from the nearest rows' fill (init="knn"; an explicit path's "auto" start is the
+    mean fill); at or below it the exact solver."""
     from nldr.impute import _regularizer as module
 
     monkeypatch.setattr(module, "AUTO_EXACT_MAX_ROWS", 49)
@@ -186,11 +187,37 @@ def test_auto_method_runs_every_stage_on_pivoted_landmarks_above_its_threshold(r
     kw = {"gamma": None, "tau": 0.1, "random_state": 4}
     auto = KernelRegularizerImputer(**kw, options={"exact_stages": 1}).fit(W)
     rule = {"landmark_rule": module.AUTO_LANDMARK_RULE, "stage_tol": module.AUTO_STAGE_TOL}
-    explicit = KernelRegularizerImputer(**kw, method="nystroem", n_landmarks=15, options=rule).fit(W)
+    explicit = {**kw, "method": "nystroem", "n_landmarks": 15, "options": rule}
     assert auto.method_ == "nystroem"
-    np.testing.assert_array_equal(auto.completed_, explicit.completed_)  # the same computation
+    knn = KernelRegularizerImputer(**explicit, init="knn").fit(W)
+    np.testing.assert_array_equal(auto.completed_, knn.completed_)  # the same computation
+    assert KernelRegularizerImputer(**explicit).init == "auto"  # the explicit path's "auto" is the mean
+    mean = KernelRegularizerImputer(**explicit, init="mean").fit(W)
+    np.testing.assert_array_equal(KernelRegularizerImputer(**explicit).fit(W).completed_, mean.completed_)
     assert KernelRegularizerImputer(**kw).fit(W[:49]).method_ == "exact"
     assert np.isfinite(auto.transform(W[:5] + 0.01)).all()
+
+
+def test_the_search_folds_start_where_the_final_solve_starts(rng, monkeypatch):
+    """Above AUTO_EXACT_MAX_ROWS rows every fold solve of the tuning starts from the nearest rows' fill
+    of its own matrix, as the final solve does; at or below it none does."""
+    from nldr.impute import _regularizer as module
+
+    calls = []
+    fill = module.neighbour_fill
+    monkeypatch.setattr(module, "neighbour_fill", lambda Z, m, k: calls.append(m.sum()) or fill(Z, m, k))
+    monkeypatch.setattr(module, "AUTO_EXACT_MAX_ROWS", 49)
+    monkeypatch.setattr(module, "AUTO_LANDMARKS", 15)
+    monkeypatch.setattr(module, "TUNE_LANDMARKS", 15)
+    W, mask = hide(surface(60, rng, noise=0.01), 0.25, rng)
+    est = KernelRegularizerImputer(gamma=None).fit(W)
+    assert hasattr(est, "cv_results_") and est.method_ == "nystroem"
+    from nldr.impute._defaults import TUNE_FOLDS as folds
+    assert len(calls) >= folds + 1 and calls[0] == mask.sum()  # the fit's start, then the folds'
+    assert all(c < mask.sum() for c in calls[1:])  # each fold hides more
+    calls.clear()
+    KernelRegularizerImputer(gamma=None).fit(W[:49])
+    assert calls == []
 
 
 def test_pandas_in_and_out_and_feature_names(rng):
@@ -226,6 +253,7 @@ def test_bad_input_is_refused_with_a_clear_message(X, match):
         ({"gamma": -1.0}, "gamma"),
         ({"method": "fast"}, "method"),
         ({"starts": "all"}, "starts"),
+        ({"init": "median"}, "init"),
         ({"weights": "inverse"}, "weights"),
         ({"n_neighbors": 0}, "n_neighbors"),
         ({"options": [1]}, "options"),

@@ -3,7 +3,8 @@
 The input check itself is :func:`nldr._validation.check_masked_matrix` (re-exported here), the one
 mask check of the library. ``mean_fill`` is the trusting inner version of
 :func:`nldr._baselines.mean_impute` and every other method's starting point;
-``observed_standardisation`` is the one column standardisation on the observed entries.
+``observed_standardisation`` is the one column standardisation on the observed entries;
+``neighbour_fill`` is the nearest rows' alternative to the mean fill.
 """
 
 from __future__ import annotations
@@ -12,7 +13,13 @@ import numpy as np
 
 from .._validation import check_masked_matrix
 
-__all__ = ["check_masked_matrix", "observed_column_means", "observed_standardisation", "mean_fill"]
+__all__ = [
+    "check_masked_matrix",
+    "observed_column_means",
+    "observed_standardisation",
+    "mean_fill",
+    "neighbour_fill",
+]
 
 
 def observed_column_means(W: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -38,3 +45,17 @@ def mean_fill(W: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """``W`` at the observed entries, the observed column means elsewhere (input already validated:
     W zero at missing entries, every column observed)."""
     return np.where(mask, W, observed_column_means(W, mask)[None, :])
+
+
+def neighbour_fill(W: np.ndarray, mask: np.ndarray, n_neighbors: int) -> np.ndarray:
+    """``W`` at the observed entries; a missing entry (i, j) gets the mean of column j over the
+    ``n_neighbors`` rows nearest to row i among those that observe column j (scikit-learn's
+    ``KNNImputer``: Euclidean distance on the columns both rows observe, rescaled to all columns). A row
+    that observes nothing gets the observed column means. Shape and units of W; input already validated
+    (W zero at missing entries, every column observed)."""
+    from sklearn.impute import KNNImputer
+
+    filled = KNNImputer(n_neighbors=int(n_neighbors), keep_empty_features=True).fit_transform(
+        np.where(mask, W, np.nan)
+    )
+    return np.where(mask, W, filled)

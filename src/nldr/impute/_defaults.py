@@ -20,6 +20,8 @@ __all__ = [
     "AUTO_LANDMARK_RULE",
     "AUTO_STAGE_TOL",
     "DEFAULT_LANDMARKS",
+    "INITS",
+    "INIT_NEIGHBOURS",
     "EXACT_OPTIONS",
     "MEDIAN_RULE_MULTIPLE",
     "TUNE_GAMMA_MULTIPLES",
@@ -51,6 +53,10 @@ AUTO_EXACT_MAX_ROWS = 150
 #: decrease AUTO_STAGE_TOL (they only give the next stage its start; measured:
 #: docs/PERFORMANCE.md#auto-landmarks)
 AUTO_LANDMARKS, AUTO_LANDMARK_RULE, AUTO_STAGE_TOL = 150, "pivoted", 1e-5
+#: the solve's starts of ``init``, and the nearest rows whose mean starts a missing entry with "knn" ("auto"
+#: takes it on the approximate path above AUTO_EXACT_MAX_ROWS rows, whose minimiser depends on its start;
+#: measured: docs/PERFORMANCE.md#the-start)
+INITS, INIT_NEIGHBOURS = ("auto", "mean", "knn"), 10
 #: ``n_landmarks=None`` with ``method="nystroem"`` or ``"nystroem-warm"``: the warm start's default
 #: landmark count, one default for both Nystroem paths
 DEFAULT_LANDMARKS = NystroemWarmOptions.landmarks

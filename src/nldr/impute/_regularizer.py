@@ -8,7 +8,7 @@ import numpy as np
 from sklearn.utils import check_random_state
 from sklearn.utils._param_validation import Interval, StrOptions
 
-from .._baselines._masked import mean_fill, observed_standardisation
+from .._baselines._masked import mean_fill, neighbour_fill, observed_standardisation
 from .._options import last_stage_only, solver_options
 from .._preimage import Subspace, average_solutions, complete_from_starts, nearest_rows
 from ..data_terms import MaskedHuber, MaskedLeastSquares
@@ -22,6 +22,8 @@ from ._defaults import (
     DEFAULT_LANDMARKS,
     EXACT_OPTIONS,
     FLAT_OPTIONS,
+    INIT_NEIGHBOURS,
+    INITS,
     LOSSES,
     MEDIAN_RULE_MULTIPLE,
     METHODS,
@@ -127,6 +129,15 @@ class KernelRegularizerImputer(MaskedImputerBase):
         (``landmark_rule``, ``landmark_seed`` and the stopping options). With
         ``landmark_rule="random"`` (the explicit Nystroem paths' default) ``landmark_seed`` defaults
         to a draw from ``random_state``.
+    init : {"auto", "mean", "knn"}, default "auto"
+        The solve's start at the missing entries: "mean", the observed column means (the paper's);
+        "knn", the mean of the :data:`INIT_NEIGHBOURS` nearest rows that observe the entry
+        (:func:`nldr._baselines._masked.neighbour_fill`, in the solved units). "auto": "knn" for
+        ``method="auto"`` above :data:`AUTO_EXACT_MAX_ROWS` rows, whose approximate minimiser depends
+        on the start and lands nearer the exact one from the neighbours' fill; "mean" otherwise (the
+        exact path reached the same minimum from either: docs/PERFORMANCE.md#the-start). The tuning's
+        fold solves take the same start; the median rule's width is set on the mean fill either way,
+        and a warm start starts from the previous solve.
     verbose : bool, default False
         Print one line per penalty stage.
     n_neighbors : int >= 1 or "auto", default "auto"
@@ -259,6 +270,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         tol=1e-10,
         gtol=1e-6,
         options=None,
+        init="auto",
         verbose=False,
         n_neighbors="auto",
         starts="auto",
@@ -283,6 +295,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         self.tol = tol
         self.gtol = gtol
         self.options = options
+        self.init = init
         self.verbose = verbose
         self.n_neighbors = n_neighbors
         self.starts = starts
@@ -310,6 +323,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         "tol": [Interval(Real, 0, np.inf, closed="neither")],
         "gtol": [Interval(Real, 0, np.inf, closed="neither")],
         "options": [dict, None],
+        "init": [StrOptions(set(INITS))],
         "verbose": ["verbose"],
         "n_neighbors": [Interval(Integral, 1, None, closed="left"), StrOptions({"auto"})],
         "starts": [StrOptions({"mean", "each", "auto"})],
@@ -391,16 +405,24 @@ class KernelRegularizerImputer(MaskedImputerBase):
         not on the order given either)."""
         return 0
 
+    def _start(self, n: int) -> str:
+        """The start ``init`` resolves to on n rows: "auto" is "knn" for method="auto" above
+        AUTO_EXACT_MAX_ROWS rows, "mean" otherwise."""
+        if self.init != "auto":
+            return self.init
+        return "knn" if self.method == "auto" and n > AUTO_EXACT_MAX_ROWS else "mean"
+
     def _fold_solver(self, n: int) -> dict:
         """The tuning's fold solves: the exact kernel up to AUTO_EXACT_MAX_ROWS rows, the Nystroem kernel
-        above, at looser tolerances (they only rank candidates)."""
+        above, at looser tolerances (they only rank candidates), from the final solve's start."""
+        start = {"init": self._start(n), **TUNE_TOLERANCES}
         if n <= AUTO_EXACT_MAX_ROWS:
             options = {k: v for k, v in (self.options or {}).items() if k in EXACT_OPTIONS}
-            return {"method": "exact", "n_landmarks": None, "options": options or None, **TUNE_TOLERANCES}
+            return {"method": "exact", "n_landmarks": None, "options": options or None, **start}
         options = {k: v for k, v in (self.options or {}).items() if k in NYSTROEM_OPTIONS}
         options = {"landmark_seed": self._tune_seed(), "landmark_rule": AUTO_LANDMARK_RULE, **options}
         landmarks = TUNE_LANDMARKS if self.n_landmarks is None else self.n_landmarks
-        return {"method": "nystroem", "n_landmarks": landmarks, "options": options, **TUNE_TOLERANCES}
+        return {"method": "nystroem", "n_landmarks": landmarks, "options": options, **start}
 
     def _solve(self, W, mask):
         gamma = None if self.gamma is None else self.gamma if is_auto(self.gamma) else float(self.gamma)
@@ -416,6 +438,8 @@ class KernelRegularizerImputer(MaskedImputerBase):
         warm = previous is not None and previous.shape == W.shape
         if warm:  # the previous estimate, in this fit's (standardised) units
             S0 = previous if not self.standardize else (previous - self.mean_) / self.scale_
+        elif self._start(W.shape[0]) == "knn":
+            S0 = neighbour_fill(Z, mask, INIT_NEIGHBOURS)
         median_rule = median_rule_gamma(filled) if gamma is None or is_auto(gamma) else None
         grid = self._grid(gamma, tau, median_rule)
         tuned = (is_auto(gamma) or is_auto(tau)) and TUNE_MIN_ROWS <= W.shape[0] < TUNE_MAX_ROWS
