@@ -39,6 +39,15 @@ to 11,800; 20 % MCAR; table and mask from ``default_rng(seed)``): ``gamma=None, 
 ``method="exact"``, ``"auto"`` and ``"nystroem-warm"`` (100 random landmarks), the default, and
 missForest (1/3): RMSE over the hidden entries in units of each column's sd.
 
+``start``: the default's solve (untuned: the median rule's width times ``--mults`` / 0.25, tau
+``--taus``) on the first ``--rows`` training rows (``--heldout``: oil rows 1000-1999 of
+:func:`nldr.datasets.load_oil_rows`, the validation split, which no benchmark cell uses) from each of
+``--starts``: "mean" (``init="mean"``) or "knn<k>" (``init="knn"`` with the module constant
+``INIT_NEIGHBOURS`` set to k); ``--exact`` solves with ``method="exact"`` instead of "auto". Per mask:
+SSE, the exact energy at ``rho_max`` of the solve's S (:func:`nldr.regularizer.reduced_energy`: which
+minimum the path reached), L-BFGS iterations and CPU seconds; then means per (p, start, multiple, tau).
+Ground truth scores every candidate: the best per mask is an **oracle**.
+
 ``transform``: fit on the 1000 training rows (complete), then complete the first 200 validation rows
 with a share p of their entries hidden (mask seed 2016 + k): SSE on the hidden entries of ours and of
 scikit-learn's ``KNNImputer`` (its defaults, and its ``n_neighbors``/``weights`` chosen by the
@@ -66,6 +75,10 @@ Usage::
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py speed --rows 3000 --p 0.25 --masks 3
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py path --sizes 150 300 --masks 3
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py heavy --seeds 1 2 3
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py start --masks 10 --starts mean knn5 knn10 knn20
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py start --masks 3 --starts mean knn10 --exact
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py start --starts knn10 --mults 0.125 0.25 0.5 1 \
+        --taus 0.03 0.1 0.3
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py transform --masks 3
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_defaults.py ard --rows 100 --masks 5
 """
@@ -278,6 +291,46 @@ def run_path(args):
                 print(f"path n={n} p={p:g} seed={SEED + k}: " + ", ".join(line), flush=True)
 
 
+def run_start(args):
+    from nldr.data_terms import MaskedLeastSquares
+    from nldr.impute import _regularizer as module
+    from nldr.impute._defaults import MEDIAN_RULE_MULTIPLE, median_rule_gamma
+    from nldr.regularizer import reduced_energy
+
+    if args.quick:
+        args.rows, args.p, args.masks, args.starts = 200, [0.25], 1, ["mean", "knn10"]
+    X = load_oil_rows(2000, args.data_dir)[1000:] if args.heldout else load_oil("train", args.data_dir)[0]
+    X = X[: args.rows]
+    method, rows = ("exact" if args.exact else "auto"), []
+    for p in args.p:
+        for k in range(args.masks):
+            W, mask = masked(X, p, SEED + k)
+            mean, scale = observed_standardisation(np.where(mask, X, 0.0), mask)
+            Z = np.where(mask, (X - mean) / scale, 0.0)
+            rule = median_rule_gamma(Z)  # the standardised columns' observed means are 0: the mean fill
+            for start, mult, tau in ((s, m, t) for s in args.starts for m in args.mults for t in args.taus):
+                if start != "mean":
+                    module.INIT_NEIGHBOURS = int(start.removeprefix("knn"))
+                gamma = mult * rule / MEDIAN_RULE_MULTIPLE
+                init = "mean" if start == "mean" else "knn"
+                est = KernelRegularizerImputer(gamma=gamma, tau=tau, method=method, init=init)
+                cpu, X_hat = timed(lambda est=est, W=W: est.fit_transform(W), clock="cpu")
+                data = MaskedLeastSquares(np.where(mask, (W - est.mean_) / est.scale_, 0.0), mask)
+                energy, _ = reduced_energy(est.manifold_rows_, data, gamma=gamma, tau=tau, rho=est.rho_max)
+                rows.append({"p": p, "start": start, "mult": mult, "tau": tau, "cpu": cpu})
+                rows[-1]["sse"] = sse(X_hat, X)
+                print(
+                    f"start n={X.shape[0]} p={p:g} seed={SEED + k} {method} {start} mult={mult:g} "
+                    f"tau={tau:g}: "
+                    f"SSE {rows[-1]['sse']:.3f}, exact energy {energy:.6f}, {est.result_.nit} iterations, "
+                    f"{cpu:.2f} CPU s",
+                    flush=True,
+                )
+    table = pd.DataFrame(rows).groupby(["p", "start", "mult", "tau"])
+    summary = table.agg(sse=("sse", "mean"), sd=("sse", "std"), masks=("sse", "size"), cpu=("cpu", "mean"))
+    print(summary.round(3).to_string())
+
+
 def run_transform(args):
     X_train = load_oil("train", args.data_dir)[0]
     X_new = load_oil("validation", args.data_dir)[0][:200]
@@ -426,6 +479,17 @@ def main(argv=None):
     heavy = common_options(sub.add_parser("heavy", help="a heavy-tailed table: the solver paths"))
     heavy.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     heavy.set_defaults(run=run_heavy)
+
+    start = common_options(sub.add_parser("start", help="the solve's start: mean against nearest rows"))
+    start.add_argument("--rows", type=int, default=1000)
+    start.add_argument(ps[0], **ps[1])
+    start.add_argument("--masks", type=int, default=3)
+    start.add_argument("--starts", nargs="+", default=["mean", "knn10"], help='"mean" or "knn<k>"')
+    start.add_argument("--mults", type=float, nargs="+", default=[0.25], help="width multiples")
+    start.add_argument("--taus", type=float, nargs="+", default=[0.1])
+    start.add_argument("--exact", action="store_true", help='method="exact" instead of "auto"')
+    start.add_argument("--heldout", action="store_true", help="oil rows 1000-1999 (validation split)")
+    start.set_defaults(run=run_start)
 
     transform = common_options(sub.add_parser("transform", help="new rows against KNNImputer"))
     transform.add_argument(ps[0], **ps[1])
