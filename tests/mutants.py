@@ -227,6 +227,13 @@ MUTANTS = [
         ("tests/test_reliability_consistency.py",),
     ),
     Mutant(
+        "regularizer: the default starts from the mean at every size",
+        "src/nldr/impute/_regularizer.py",
+        'return "knn" if self.method == "auto" and n >= AUTO_KNN_MIN_ROWS else "mean"',
+        'return "mean"',
+        ("tests/test_impute.py::test_auto_method_runs_every_stage_on_pivoted_landmarks_above_its_threshold",),
+    ),
+    Mutant(
         "regularizer: the search runs at every size",
         "src/nldr/impute/_regularizer.py",
         "TUNE_MIN_ROWS <= W.shape[0] < TUNE_MAX_ROWS",

@@ -177,12 +177,13 @@ def test_auto_method_by_size(rng):
 def test_auto_method_runs_every_stage_on_pivoted_landmarks_above_its_threshold(rng, monkeypatch):
     """Above AUTO_EXACT_MAX_ROWS rows "auto" is method="nystroem" on AUTO_LANDMARKS landmarks chosen by
     AUTO_LANDMARK_RULE, the stages before the last stopping at AUTO_STAGE_TOL (the warm start's own
-    options dropped), from the nearest rows' fill (init="knn"; an explicit path's "auto" start is the
-    mean fill); at or below it the exact solver."""
+    options dropped), from the nearest rows' fill from AUTO_KNN_MIN_ROWS rows (init="knn"; below, and
+    on an explicit path, the mean fill); at or below AUTO_EXACT_MAX_ROWS the exact solver."""
     from nldr.impute import _regularizer as module
 
     monkeypatch.setattr(module, "AUTO_EXACT_MAX_ROWS", 49)
     monkeypatch.setattr(module, "AUTO_LANDMARKS", 15)
+    monkeypatch.setattr(module, "AUTO_KNN_MIN_ROWS", 60)
     W, _ = hide(surface(60, rng, noise=0.01), 0.25, rng)
     kw = {"gamma": None, "tau": 0.1, "random_state": 4}
     auto = KernelRegularizerImputer(**kw, options={"exact_stages": 1}).fit(W)
@@ -191,22 +192,24 @@ def test_auto_method_runs_every_stage_on_pivoted_landmarks_above_its_threshold(r
     assert auto.method_ == "nystroem"
     knn = KernelRegularizerImputer(**explicit, init="knn").fit(W)
     np.testing.assert_array_equal(auto.completed_, knn.completed_)  # the same computation
-    assert KernelRegularizerImputer(**explicit).init == "auto"  # the explicit path's "auto" is the mean
     mean = KernelRegularizerImputer(**explicit, init="mean").fit(W)
     np.testing.assert_array_equal(KernelRegularizerImputer(**explicit).fit(W).completed_, mean.completed_)
+    monkeypatch.setattr(module, "AUTO_KNN_MIN_ROWS", 61)  # below it "auto" starts from the mean
+    np.testing.assert_array_equal(KernelRegularizerImputer(**kw).fit(W).completed_, mean.completed_)
     assert KernelRegularizerImputer(**kw).fit(W[:49]).method_ == "exact"
     assert np.isfinite(auto.transform(W[:5] + 0.01)).all()
 
 
 def test_the_search_folds_start_where_the_final_solve_starts(rng, monkeypatch):
-    """Above AUTO_EXACT_MAX_ROWS rows every fold solve of the tuning starts from the nearest rows' fill
-    of its own matrix, as the final solve does; at or below it none does."""
+    """From AUTO_KNN_MIN_ROWS rows every fold solve of the tuning starts from the nearest rows' fill of
+    its own matrix, as the final solve does; below it none does."""
     from nldr.impute import _regularizer as module
 
     calls = []
     fill = module.neighbour_fill
     monkeypatch.setattr(module, "neighbour_fill", lambda Z, m, k: calls.append(m.sum()) or fill(Z, m, k))
     monkeypatch.setattr(module, "AUTO_EXACT_MAX_ROWS", 49)
+    monkeypatch.setattr(module, "AUTO_KNN_MIN_ROWS", 50)
     monkeypatch.setattr(module, "AUTO_LANDMARKS", 15)
     monkeypatch.setattr(module, "TUNE_LANDMARKS", 15)
     W, mask = hide(surface(60, rng, noise=0.01), 0.25, rng)

@@ -16,6 +16,7 @@ from ..regularizer import minimize_regularized
 from ._base import MaskedImputerBase
 from ._defaults import (
     AUTO_EXACT_MAX_ROWS,
+    AUTO_KNN_MIN_ROWS,
     AUTO_LANDMARK_RULE,
     AUTO_LANDMARKS,
     AUTO_STAGE_TOL,
@@ -131,13 +132,12 @@ class KernelRegularizerImputer(MaskedImputerBase):
         to a draw from ``random_state``.
     init : {"auto", "mean", "knn"}, default "auto"
         The solve's start at the missing entries: "mean", the observed column means (the paper's);
-        "knn", the mean of the :data:`INIT_NEIGHBOURS` nearest rows that observe the entry
-        (:func:`nldr._baselines._masked.neighbour_fill`, in the solved units). "auto": "knn" for
-        ``method="auto"`` above :data:`AUTO_EXACT_MAX_ROWS` rows, whose approximate minimiser depends
-        on the start and lands nearer the exact one from the neighbours' fill; "mean" otherwise (the
-        exact path reached the same minimum from either: docs/PERFORMANCE.md#the-start). The tuning's
-        fold solves take the same start; the median rule's width is set on the mean fill either way,
-        and a warm start starts from the previous solve.
+        "knn", the mean of the :data:`INIT_NEIGHBOURS` nearest rows observing the entry
+        (:func:`nldr._baselines._masked.neighbour_fill`). "auto": "knn" for ``method="auto"`` from
+        :data:`AUTO_KNN_MIN_ROWS` rows, whose approximate minimiser depends on the start and reaches a
+        lower energy from there, else "mean" (docs/PERFORMANCE.md#the-start). The tuning's folds take
+        the same start; the median rule's width is set on the mean fill either way; a warm start
+        starts from the previous solve.
     verbose : bool, default False
         Print one line per penalty stage.
     n_neighbors : int >= 1 or "auto", default "auto"
@@ -406,11 +406,11 @@ class KernelRegularizerImputer(MaskedImputerBase):
         return 0
 
     def _start(self, n: int) -> str:
-        """The start ``init`` resolves to on n rows: "auto" is "knn" for method="auto" above
-        AUTO_EXACT_MAX_ROWS rows, "mean" otherwise."""
+        """The start ``init`` resolves to on n rows: "auto" is "knn" for method="auto" from
+        AUTO_KNN_MIN_ROWS rows, "mean" otherwise."""
         if self.init != "auto":
             return self.init
-        return "knn" if self.method == "auto" and n > AUTO_EXACT_MAX_ROWS else "mean"
+        return "knn" if self.method == "auto" and n >= AUTO_KNN_MIN_ROWS else "mean"
 
     def _fold_solver(self, n: int) -> dict:
         """The tuning's fold solves: the exact kernel up to AUTO_EXACT_MAX_ROWS rows, the Nystroem kernel
