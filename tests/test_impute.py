@@ -207,7 +207,7 @@ def test_the_search_folds_start_where_the_final_solve_starts(rng, monkeypatch):
 
     calls = []
     fill = module.neighbour_fill
-    monkeypatch.setattr(module, "neighbour_fill", lambda Z, m, k: calls.append(m.sum()) or fill(Z, m, k))
+    monkeypatch.setattr(module, "neighbour_fill", lambda Z, m, *a: calls.append(m.sum()) or fill(Z, m, *a))
     monkeypatch.setattr(module, "AUTO_EXACT_MAX_ROWS", 49)
     monkeypatch.setattr(module, "AUTO_KNN_MIN_ROWS", 50)
     monkeypatch.setattr(module, "AUTO_LANDMARKS", 15)

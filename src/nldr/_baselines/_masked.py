@@ -47,15 +47,22 @@ def mean_fill(W: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return np.where(mask, W, observed_column_means(W, mask)[None, :])
 
 
-def neighbour_fill(W: np.ndarray, mask: np.ndarray, n_neighbors: int) -> np.ndarray:
+def neighbour_fill(
+    W: np.ndarray, mask: np.ndarray, n_neighbors: int, max_donors: int | None = None
+) -> np.ndarray:
     """``W`` at the observed entries; a missing entry (i, j) gets the mean of column j over the
-    ``n_neighbors`` rows nearest to row i among those that observe column j (scikit-learn's
+    ``n_neighbors`` rows nearest to row i among the donors that observe column j (scikit-learn's
     ``KNNImputer``: Euclidean distance on the columns both rows observe, rescaled to all columns). A row
-    that observes nothing gets the observed column means. Shape and units of W; input already validated
-    (W zero at missing entries, every column observed)."""
+    that observes nothing gets the donors' observed column means. The donors are every row, or beyond
+    ``max_donors`` rows an evenly spaced subsample of that many (in the given order), which keeps the cost
+    linear in the rows. Shape and units of W; input already validated (W zero at missing entries, every
+    column observed)."""
     from sklearn.impute import KNNImputer
 
-    filled = KNNImputer(n_neighbors=int(n_neighbors), keep_empty_features=True).fit_transform(
-        np.where(mask, W, np.nan)
-    )
-    return np.where(mask, W, filled)
+    n = W.shape[0]
+    rows = slice(None)
+    if max_donors is not None and n > max_donors:
+        rows = np.linspace(0, n - 1, max_donors).astype(int)
+    nan = np.where(mask, W, np.nan)
+    imputer = KNNImputer(n_neighbors=int(n_neighbors), keep_empty_features=True).fit(nan[rows])
+    return np.where(mask, W, imputer.transform(nan))

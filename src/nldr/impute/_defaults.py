@@ -22,6 +22,7 @@ __all__ = [
     "DEFAULT_LANDMARKS",
     "INITS",
     "INIT_NEIGHBOURS",
+    "INIT_MAX_DONORS",
     "AUTO_KNN_MIN_ROWS",
     "EXACT_OPTIONS",
     "MEDIAN_RULE_MULTIPLE",
@@ -54,8 +55,9 @@ AUTO_EXACT_MAX_ROWS = 150
 #: decrease AUTO_STAGE_TOL (they only give the next stage its start; measured:
 #: docs/PERFORMANCE.md#auto-landmarks)
 AUTO_LANDMARKS, AUTO_LANDMARK_RULE, AUTO_STAGE_TOL = 150, "pivoted", 1e-5
-#: the solve's starts of ``init``, and the nearest rows whose mean starts a missing entry with "knn"
-INITS, INIT_NEIGHBOURS = ("auto", "mean", "knn"), 10
+#: the solve's starts of ``init``, the nearest rows whose mean starts a missing entry with "knn", and the
+#: most donor rows they are drawn from (an even subsample beyond: the fill's cost linear in the rows)
+INITS, INIT_NEIGHBOURS, INIT_MAX_DONORS = ("auto", "mean", "knn"), 10, 2000
 #: ``init="auto"`` starts ``method="auto"`` from "knn" from this many rows, from the mean below: from 500
 #: oil rows the nearest rows' fill reached a lower exact energy on every mask measured (45), at 200-300 rows
 #: on 24 of 30, and on wine (178 rows) it raised the error (docs/PERFORMANCE.md#the-start)

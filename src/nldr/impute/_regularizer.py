@@ -23,6 +23,7 @@ from ._defaults import (
     DEFAULT_LANDMARKS,
     EXACT_OPTIONS,
     FLAT_OPTIONS,
+    INIT_MAX_DONORS,
     INIT_NEIGHBOURS,
     INITS,
     LOSSES,
@@ -132,12 +133,12 @@ class KernelRegularizerImputer(MaskedImputerBase):
         to a draw from ``random_state``.
     init : {"auto", "mean", "knn"}, default "auto"
         The solve's start at the missing entries: "mean", the observed column means (the paper's);
-        "knn", the mean of the :data:`INIT_NEIGHBOURS` nearest rows observing the entry
-        (:func:`nldr._baselines._masked.neighbour_fill`). "auto": "knn" for ``method="auto"`` from
-        :data:`AUTO_KNN_MIN_ROWS` rows, whose approximate minimiser depends on the start and reaches a
-        lower energy from there, else "mean" (docs/PERFORMANCE.md#the-start). The tuning's folds take
-        the same start; the median rule's width is set on the mean fill either way; a warm start
-        starts from the previous solve.
+        "knn", the mean of the :data:`INIT_NEIGHBOURS` nearest rows observing the entry, among at most
+        :data:`INIT_MAX_DONORS` rows (:func:`nldr._baselines._masked.neighbour_fill`). "auto": "knn"
+        for ``method="auto"`` from :data:`AUTO_KNN_MIN_ROWS` rows, whose approximate minimiser depends
+        on the start and reaches a lower energy from there, else "mean"
+        (docs/PERFORMANCE.md#the-start). The tuning's folds take the same start; the median rule's
+        width is set on the mean fill either way; a warm start starts from the previous solve.
     verbose : bool, default False
         Print one line per penalty stage.
     n_neighbors : int >= 1 or "auto", default "auto"
@@ -406,8 +407,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         return 0
 
     def _start(self, n: int) -> str:
-        """The start ``init`` resolves to on n rows: "auto" is "knn" for method="auto" from
-        AUTO_KNN_MIN_ROWS rows, "mean" otherwise."""
+        """What ``init`` resolves to on n rows ("auto": "knn" on method="auto" from AUTO_KNN_MIN_ROWS)."""
         if self.init != "auto":
             return self.init
         return "knn" if self.method == "auto" and n >= AUTO_KNN_MIN_ROWS else "mean"
@@ -439,7 +439,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         if warm:  # the previous estimate, in this fit's (standardised) units
             S0 = previous if not self.standardize else (previous - self.mean_) / self.scale_
         elif self._start(W.shape[0]) == "knn":
-            S0 = neighbour_fill(Z, mask, INIT_NEIGHBOURS)
+            S0 = neighbour_fill(Z, mask, INIT_NEIGHBOURS, INIT_MAX_DONORS)
         median_rule = median_rule_gamma(filled) if gamma is None or is_auto(gamma) else None
         grid = self._grid(gamma, tau, median_rule)
         tuned = (is_auto(gamma) or is_auto(tau)) and TUNE_MIN_ROWS <= W.shape[0] < TUNE_MAX_ROWS
