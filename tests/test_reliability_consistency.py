@@ -165,6 +165,7 @@ def test_above_the_exact_rows_the_default_solve_does_not_depend_on_random_state_
 
     monkeypatch.setattr(module, "AUTO_EXACT_MAX_ROWS", 20)
     monkeypatch.setattr(module, "AUTO_LANDMARKS", 12)
+    monkeypatch.setattr(module, "AUTO_KNN_MIN_ROWS", 20)  # from the nearest rows' fill, a function of the set
     fits = [KernelRegularizerImputer(gamma=None, tau=0.1, random_state=seed).fit(oil) for seed in (0, 7)]
     assert fits[0].method_ == "nystroem"
     np.testing.assert_array_equal(fits[1].completed_, fits[0].completed_)
