@@ -166,7 +166,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         the units of the full schedule (``options["scale"]`` = sqrt(``rho0``) unless ``options``
         sets it). This is how a path of taus or widths is solved cheaply, e.g. by
         :class:`nldr.model_selection.HoldoutSearch` with ``path="tau"``. The first fit, or one on
-        another shape, solves the full schedule from mean imputation. A fit on the previous fit's
+        another shape, solves the full schedule from the ``init`` start. A fit on the previous fit's
         matrix that changes only ``n_neighbors``, ``starts``, ``weights`` or ``verbose`` keeps the
         previous solve (the same problem; a path over ``transform``'s knobs shares one fit).
     loss : {"squared", "huber"}, default "squared"
@@ -232,7 +232,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         min ||mask o (X - S)||_F^2 + rho/2 ||K(S) - C^T C||_F^2 + tau ||C||_*
 
     over the completed matrix S and the kernel factor C, with the RBF kernel
-    ``K_ij = exp(-gamma ||s_i - s_j||^2)``, by the penalty method on rho from mean imputation. The
+    ``K_ij = exp(-gamma ||s_i - s_j||^2)``, by the penalty method on rho from the ``init`` start. The
     estimate of a training row's missing entries is the solve's S there (its observed entries move
     slightly too, the data term being a penalty: ``denoise=True`` returns them); ``transform`` keeps
     the observed entries of new rows and moves the missing ones to the pre-image nearest the learnt

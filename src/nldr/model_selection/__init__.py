@@ -27,7 +27,7 @@ smoothest of the tied models, and the least regularised one, whose fold solves s
 refit.
 
 Cost. For the regularizer (``path="tau"``) the candidates of one fold form paths in tau, solved upwards
-from the smallest: the first from mean imputation with the full penalty schedule, each later one
+from the smallest: the first from the estimator's own start with the full penalty schedule, each later one
 warm-started from its neighbour's solution with the last stage only. Upwards, because a large tau can
 collapse the samples onto one point (K ~ 1 1^T), a local minimum a smaller tau's last stage does not
 leave. The first solve of each gamma starts from the previous gamma's the same way, so a fold has one
