@@ -317,15 +317,11 @@ def run_start(args):
                 cpu, X_hat = timed(lambda est=est, W=W: est.fit_transform(W), clock="cpu")
                 data = MaskedLeastSquares(np.where(mask, (W - est.mean_) / est.scale_, 0.0), mask)
                 energy, _ = reduced_energy(est.manifold_rows_, data, gamma=gamma, tau=tau, rho=est.rho_max)
-                rows.append({"p": p, "start": start, "mult": mult, "tau": tau, "cpu": cpu})
-                rows[-1]["sse"] = sse(X_hat, X)
-                print(
-                    f"start n={X.shape[0]} p={p:g} seed={SEED + k} {method} {start} mult={mult:g} "
-                    f"tau={tau:g}: "
-                    f"SSE {rows[-1]['sse']:.3f}, exact energy {energy:.6f}, {est.result_.nit} iterations, "
-                    f"{cpu:.2f} CPU s",
-                    flush=True,
-                )
+                error = sse(X_hat, X)
+                rows.append({"p": p, "start": start, "mult": mult, "tau": tau, "sse": error, "cpu": cpu})
+                case = f"n={X.shape[0]} p={p:g} seed={SEED + k} {method} {start} mult={mult:g} tau={tau:g}"
+                found = f"SSE {error:.3f}, exact energy {energy:.6f}, {est.result_.nit} iterations"
+                print(f"start {case}: {found}, {cpu:.2f} CPU s", flush=True)
     table = pd.DataFrame(rows).groupby(["p", "start", "mult", "tau"])
     summary = table.agg(sse=("sse", "mean"), sd=("sse", "std"), masks=("sse", "size"), cpu=("cpu", "mean"))
     print(summary.round(3).to_string())

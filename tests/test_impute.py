@@ -204,6 +204,7 @@ def test_the_search_folds_start_where_the_final_solve_starts(rng, monkeypatch):
     """From AUTO_KNN_MIN_ROWS rows every fold solve of the tuning starts from the nearest rows' fill of
     its own matrix, as the final solve does; below it none does."""
     from nldr.impute import _regularizer as module
+    from nldr.impute._defaults import TUNE_FOLDS
 
     calls = []
     fill = module.neighbour_fill
@@ -215,8 +216,7 @@ def test_the_search_folds_start_where_the_final_solve_starts(rng, monkeypatch):
     W, mask = hide(surface(60, rng, noise=0.01), 0.25, rng)
     est = KernelRegularizerImputer(gamma=None).fit(W)
     assert hasattr(est, "cv_results_") and est.method_ == "nystroem"
-    from nldr.impute._defaults import TUNE_FOLDS as folds
-    assert len(calls) >= folds + 1 and calls[0] == mask.sum()  # the fit's start, then the folds'
+    assert len(calls) >= TUNE_FOLDS + 1 and calls[0] == mask.sum()  # the fit's start, then the folds'
     assert all(c < mask.sum() for c in calls[1:])  # each fold hides more
     calls.clear()
     KernelRegularizerImputer(gamma=None).fit(W[:49])

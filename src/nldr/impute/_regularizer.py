@@ -415,14 +415,14 @@ class KernelRegularizerImputer(MaskedImputerBase):
     def _fold_solver(self, n: int) -> dict:
         """The tuning's fold solves: the exact kernel up to AUTO_EXACT_MAX_ROWS rows, the Nystroem kernel
         above, at looser tolerances (they only rank candidates), from the final solve's start."""
-        start = {"init": self._start(n), **TUNE_TOLERANCES}
+        common = {"init": self._start(n), **TUNE_TOLERANCES}
         if n <= AUTO_EXACT_MAX_ROWS:
             options = {k: v for k, v in (self.options or {}).items() if k in EXACT_OPTIONS}
-            return {"method": "exact", "n_landmarks": None, "options": options or None, **start}
+            return {"method": "exact", "n_landmarks": None, "options": options or None, **common}
         options = {k: v for k, v in (self.options or {}).items() if k in NYSTROEM_OPTIONS}
         options = {"landmark_seed": self._tune_seed(), "landmark_rule": AUTO_LANDMARK_RULE, **options}
         landmarks = TUNE_LANDMARKS if self.n_landmarks is None else self.n_landmarks
-        return {"method": "nystroem", "n_landmarks": landmarks, "options": options, **start}
+        return {"method": "nystroem", "n_landmarks": landmarks, "options": options, **common}
 
     def _solve(self, W, mask):
         gamma = None if self.gamma is None else self.gamma if is_auto(self.gamma) else float(self.gamma)
