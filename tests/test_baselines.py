@@ -117,6 +117,28 @@ def test_neighbour_fill_is_the_mean_of_the_nearest_rows_observing_the_entry_by_b
         nearest = np.asarray(donors)[np.argsort(dist)[:k]]
         expected[i, j] = X[nearest, j].mean()
     np.testing.assert_allclose(neighbour_fill(W, mask, k), expected, rtol=1e-13, atol=1e-13)
+    np.testing.assert_array_equal(neighbour_fill(W, mask, k, max_donors=30), neighbour_fill(W, mask, k))
+
+
+def test_neighbour_fill_beyond_max_donors_draws_from_an_even_subsample_of_the_rows(rng):
+    """Beyond ``max_donors`` rows the donors are the evenly spaced rows 0, 2, ..., 40 of 41: each missing
+    entry is the mean of the k nearest of those observing its column (brute force as above)."""
+    from nldr._baselines._masked import neighbour_fill
+
+    X = rng.normal(size=(41, 3))
+    mask = random_mask(rng, X.shape, 0.3)
+    mask[0] = True
+    W = np.where(mask, X, 0.0)
+    donors = np.linspace(0, 40, 21).astype(int)
+    out = neighbour_fill(W, mask, 2, max_donors=21)
+    for i, j in zip(*np.nonzero(~mask), strict=True):
+        if not mask[i].any():
+            continue
+        pool = [r for r in donors if mask[r, j] and (mask[r] & mask[i]).any()]
+        pairs = zip(pool, [mask[r] & mask[i] for r in pool], strict=True)
+        dist = [np.sqrt(3 / b.sum() * np.sum((X[r, b] - X[i, b]) ** 2)) for r, b in pairs]
+        nearest = np.asarray(pool)[np.argsort(dist)[:2]]
+        assert out[i, j] == pytest.approx(X[nearest, j].mean(), rel=1e-12, abs=1e-12)
 
 
 def test_nearest_neighbour_copies_from_brute_force_nearest_complete_row(rng):
