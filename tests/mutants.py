@@ -234,6 +234,13 @@ MUTANTS = [
         ("tests/test_impute.py::test_auto_method_runs_every_stage_on_pivoted_landmarks_above_its_threshold",),
     ),
     Mutant(
+        "regularizer: tol='auto' is the strict tolerance on every path",
+        "src/nldr/impute/_regularizer.py",
+        'options["tol"] = AUTO_NYSTROEM_TOL if is_auto(self.tol) else options["tol"]',
+        "pass",
+        ("tests/test_impute.py::test_tol_auto_is_looser_on_the_approximate_path_only",),
+    ),
+    Mutant(
         "regularizer: the search runs at every size",
         "src/nldr/impute/_regularizer.py",
         "TUNE_MIN_ROWS <= W.shape[0] < TUNE_MAX_ROWS",

@@ -177,8 +177,9 @@ def test_auto_method_by_size(rng):
 def test_auto_method_runs_every_stage_on_pivoted_landmarks_above_its_threshold(rng, monkeypatch):
     """Above AUTO_EXACT_MAX_ROWS rows "auto" is method="nystroem" on AUTO_LANDMARKS landmarks chosen by
     AUTO_LANDMARK_RULE, the stages before the last stopping at AUTO_STAGE_TOL (the warm start's own
-    options dropped), from the nearest rows' fill from AUTO_KNN_MIN_ROWS rows (init="knn"; below, and
-    on an explicit path, the mean fill); at or below AUTO_EXACT_MAX_ROWS the exact solver."""
+    options dropped) and the last at AUTO_NYSTROEM_TOL, from the nearest rows' fill from AUTO_KNN_MIN_ROWS
+    rows (init="knn"; below, and on an explicit path, the mean fill); at or below AUTO_EXACT_MAX_ROWS the
+    exact solver."""
     from nldr.impute import _regularizer as module
 
     monkeypatch.setattr(module, "AUTO_EXACT_MAX_ROWS", 49)
@@ -189,6 +190,7 @@ def test_auto_method_runs_every_stage_on_pivoted_landmarks_above_its_threshold(r
     auto = KernelRegularizerImputer(**kw, options={"exact_stages": 1}).fit(W)
     rule = {"landmark_rule": module.AUTO_LANDMARK_RULE, "stage_tol": module.AUTO_STAGE_TOL}
     explicit = {**kw, "method": "nystroem", "n_landmarks": 15, "options": rule}
+    explicit["tol"] = module.AUTO_NYSTROEM_TOL
     assert auto.method_ == "nystroem"
     knn = KernelRegularizerImputer(**explicit, init="knn").fit(W)
     np.testing.assert_array_equal(auto.completed_, knn.completed_)  # the same computation
@@ -198,6 +200,27 @@ def test_auto_method_runs_every_stage_on_pivoted_landmarks_above_its_threshold(r
     np.testing.assert_array_equal(KernelRegularizerImputer(**kw).fit(W).completed_, mean.completed_)
     assert KernelRegularizerImputer(**kw).fit(W[:49]).method_ == "exact"
     assert np.isfinite(auto.transform(W[:5] + 0.01)).all()
+
+
+def test_tol_auto_is_looser_on_the_approximate_path_only(rng, monkeypatch):
+    """tol="auto" stops the last stage of "auto"'s approximate path at AUTO_NYSTROEM_TOL and every other
+    path's stages at DEFAULT_TOL; a tol passed holds on every path. AUTO_NYSTROEM_TOL is set far from
+    DEFAULT_TOL here, so that the two stop at different iterations on this small problem."""
+    from nldr.impute import _regularizer as module
+
+    monkeypatch.setattr(module, "AUTO_EXACT_MAX_ROWS", 49)
+    monkeypatch.setattr(module, "AUTO_LANDMARKS", 15)
+    monkeypatch.setattr(module, "AUTO_NYSTROEM_TOL", 1e-4)
+    W, _ = hide(surface(60, rng, noise=0.01), 0.25, rng)
+    kw = {"gamma": None, "tau": 0.1}
+    auto = KernelRegularizerImputer(**kw).fit(W)
+    np.testing.assert_array_equal(auto.completed_, KernelRegularizerImputer(**kw, tol=1e-4).fit(W).completed_)
+    strict = KernelRegularizerImputer(**kw, tol=module.DEFAULT_TOL).fit(W)
+    assert auto.method_ == strict.method_ == "nystroem" and auto.result_.nit < strict.result_.nit
+    for rows, method in ((60, "exact"), (60, "nystroem"), (49, "auto")):
+        default = KernelRegularizerImputer(**kw, method=method).fit(W[:rows])
+        passed = KernelRegularizerImputer(**kw, method=method, tol=module.DEFAULT_TOL).fit(W[:rows])
+        np.testing.assert_array_equal(default.completed_, passed.completed_)
 
 
 def test_the_search_folds_start_where_the_final_solve_starts(rng, monkeypatch):

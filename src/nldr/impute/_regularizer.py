@@ -19,8 +19,10 @@ from ._defaults import (
     AUTO_KNN_MIN_ROWS,
     AUTO_LANDMARK_RULE,
     AUTO_LANDMARKS,
+    AUTO_NYSTROEM_TOL,
     AUTO_STAGE_TOL,
     DEFAULT_LANDMARKS,
+    DEFAULT_TOL,
     EXACT_OPTIONS,
     FLAT_OPTIONS,
     INIT_MAX_DONORS,
@@ -113,9 +115,10 @@ class KernelRegularizerImputer(MaskedImputerBase):
     max_iter : int >= 1, default 3000
         L-BFGS iterations per penalty stage (``options["max_inner"]`` of
         :func:`~nldr.regularizer.minimize_regularized`).
-    tol : float > 0, default 1e-10
+    tol : float > 0 or "auto", default "auto"
         A stage stops when the energy's relative decrease per L-BFGS iteration is below tol
-        (L-BFGS's ``ftol``; dimensionless).
+        (L-BFGS's ``ftol``; dimensionless). "auto": :data:`DEFAULT_TOL` (1e-10), and
+        :data:`AUTO_NYSTROEM_TOL` (1e-9) on "auto"'s approximate path above :data:`AUTO_EXACT_MAX_ROWS` rows.
     gtol : float > 0, default 1e-6
         ... or when the largest gradient entry is below gtol (in the stopping units: the solved
         matrix's units over ``sqrt(rho0)`` unless ``options["scale"]`` sets them).
@@ -268,7 +271,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         rho_growth=10.0,
         rho_max=1e4,
         max_iter=3000,
-        tol=1e-10,
+        tol="auto",
         gtol=1e-6,
         options=None,
         init="auto",
@@ -321,7 +324,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         "rho_growth": [Interval(Real, 1, np.inf, closed="neither")],
         "rho_max": [Interval(Real, 0, np.inf, closed="neither")],
         "max_iter": [Interval(Integral, 1, None, closed="left")],
-        "tol": [Interval(Real, 0, np.inf, closed="neither")],
+        "tol": [Interval(Real, 0, np.inf, closed="neither"), StrOptions({"auto"})],
         "gtol": [Interval(Real, 0, np.inf, closed="neither")],
         "options": [dict, None],
         "init": [StrOptions(set(INITS))],
@@ -357,7 +360,8 @@ class KernelRegularizerImputer(MaskedImputerBase):
     def _solver_options(self) -> dict:
         """minimize_regularized's options: ``options`` with the flat parameters written in."""
         options = dict(self.options or {})
-        options.update(max_inner=self.max_iter, tol=self.tol, gtol=self.gtol)
+        tol = DEFAULT_TOL if is_auto(self.tol) else self.tol
+        options.update(max_inner=self.max_iter, tol=tol, gtol=self.gtol)
         if self.n_landmarks is not None:
             options["landmarks"] = self.n_landmarks
         elif self.method == "nystroem":  # "nystroem-warm" has the same default in its options record
@@ -384,6 +388,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
             kept = {k: v for k, v in options.items() if k in NYSTROEM_OPTIONS}
             auto = {"landmarks": AUTO_LANDMARKS, "landmark_rule": AUTO_LANDMARK_RULE}
             options = {**auto, "stage_tol": AUTO_STAGE_TOL, **kept}
+            options["tol"] = AUTO_NYSTROEM_TOL if is_auto(self.tol) else options["tol"]
         drawn = method != "exact" and options.get("landmark_rule", "random") == "random"
         if drawn and "landmark_seed" not in options:
             options["landmark_seed"] = int(
@@ -402,8 +407,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
 
     def _tune_seed(self) -> int:
         """The seed of the tuning's folds (and of their landmarks if ``options`` asks for a random draw):
-        fixed, so that the chosen knobs depend on the data only (the rows in their canonical order, so
-        not on the order given either)."""
+        fixed, so that the chosen knobs depend on the data (rows in canonical order) only."""
         return 0
 
     def _start(self, n: int) -> str:
@@ -496,8 +500,7 @@ class KernelRegularizerImputer(MaskedImputerBase):
         )
 
     def _transform_knobs(self, n: int) -> None:
-        """Reset ``transform``'s (n_neighbors_, starts_): set now when fixed (or below
-        :data:`TUNE_MIN_ROWS` rows), otherwise chosen by the row folds at the first new row."""
+        """Reset transform's knobs: set now when fixed (or below TUNE_MIN_ROWS rows), else by a new row."""
         for name in ("transform_results_", "n_neighbors_", "starts_"):
             self.__dict__.pop(name, None)
         pairs = transform_candidates(self)
@@ -506,13 +509,10 @@ class KernelRegularizerImputer(MaskedImputerBase):
 
     def _data_term(self, Z, mask):
         """The data term on the solved matrix Z: masked least squares, or Huber (delta in Z's units)."""
-        if self.loss == "huber":
-            return MaskedHuber(Z, mask, float(self.delta))
-        return MaskedLeastSquares(Z, mask)
+        return MaskedHuber(Z, mask, self.delta) if self.loss == "huber" else MaskedLeastSquares(Z, mask)
 
     def _subspace(self) -> Subspace:
-        """The principal subspace spanned by C's rows, in the form :mod:`nldr._preimage` takes (built
-        once per solve)."""
+        """C's rows' principal subspace, as :mod:`nldr._preimage` takes it (built once per solve)."""
         space = getattr(self, "_space", None)
         if space is None:
             space = self._space = regularizer_subspace(
