@@ -214,8 +214,8 @@ MUTANTS = [
     Mutant(
         "regularizer: the search's folds follow random_state",
         "src/nldr/impute/_regularizer.py",
-        "order given either).\"\"\"\n        return 0",
-        "order given either).\"\"\"\n"
+        "(rows in canonical order) only.\"\"\"\n        return 0",
+        "(rows in canonical order) only.\"\"\"\n"
         "        return int(check_random_state(self.random_state).randint(np.iinfo(np.int32).max))",
         ("tests/test_reliability_consistency.py",),
     ),
