@@ -125,8 +125,10 @@ def _energy_bound(model) -> float:
     """The two solves minimise one energy (it does not depend on the order of the rows, and a change
     of 1e-15 relative moves it by rounding only), each stage stopping when the energy's relative
     decrease per iteration is below ``tol``: at most ``max_iter`` iterations' worth of decreases
-    below ``tol`` separate two such stops."""
-    return model.max_iter * model.tol
+    below ``tol`` separate two such stops. ``tol`` is the one the fit's last stage used (``"auto"``
+    resolves by the path: the estimator's own solver arguments)."""
+    kwargs = model._solver_arguments(model.completed_.shape[0], warm=False)[1]
+    return model.max_iter * kwargs["options"]["tol"]
 
 
 def test_the_default_choices_do_not_depend_on_the_row_order(oil):
