@@ -451,51 +451,49 @@ def run_ard(args):
 def with_indicators(Z, mask):
     """Z with the standardised missingness indicators of its incomplete columns appended."""
     ind = (~mask[:, (~mask).any(axis=0)]).astype(float)
-    return np.hstack([Z, (ind - ind.mean(axis=0)) / np.where(ind.std(axis=0) > 0, ind.std(axis=0), 1.0)])
+    shift, scale = observed_standardisation(ind, np.ones(ind.shape, dtype=bool))
+    return np.hstack([Z, (ind - shift) / scale])
 
 
 def run_leads(args):
-    import yaml
-
+    from nldr import experiments
     from nldr.experiments._benchmark import _standardise, draw_mask, load_dataset
+    from nldr.experiments.notebook import load_config
 
-    config = Path(__file__).resolve().parents[1] / "config" / "config.yaml"
-    cfg = yaml.safe_load(config.read_text())["benchmark"]
-    dropped = ("name", "skip_mechanisms")
-    specs = {d["name"]: {k: v for k, v in d.items() if k not in dropped} for d in cfg["datasets"]}
-    if args.lead == "blend":
-        specs, cells = {"oil1000": specs["oil1000"]}, [("MCAR", p) for p in (0.1, 0.25, 0.5)]
-    else:
-        specs.pop("oil1000")  # MCAR only in the benchmark
-        cells = [("MAR", 0.25), ("MNAR", 0.25)]
+    benchmark = experiments.get("benchmark")
+    config = load_config(Path(__file__).resolve().parents[1])
+    settings = benchmark.settings(config)
+    blend = args.lead == "blend"
+    cells = [job.params for job in benchmark.jobs(config)]
+    cells = [P for P in cells if (P["dataset"] == "oil1000" if blend else P["mechanism"] in ("MAR", "MNAR"))]
     if args.quick:
-        specs, cells, args.masks = dict(list(specs.items())[-1:]), cells[:1], 1
-    for name, spec in specs.items():
-        X = load_dataset(spec, args.data_dir, cfg["subsample_seed"])
-        for mechanism, p in cells:
-            scores = {}
-            for k in range(args.masks):
-                mask = draw_mask(X, mechanism, p, cfg["seed"] + k, slope=cfg["slope"])
-                Z, mean, sd = _standardise(np.where(mask, X, np.nan))
-                fits = {"ours": KernelRegularizerImputer().fit_transform(Z)}
-                if args.lead == "blend":
-                    fits["missForest"] = missforest_imputer(max_features=1 / 3).fit_transform(Z)
-                    fits["blend"] = (fits["ours"] + fits["missForest"]) / 2
-                    row = {name_: sse(Z_hat * sd + mean, X) for name_, Z_hat in fits.items()}
-                else:
-                    augmented = with_indicators(Z, mask)
-                    fits["indicators"] = KernelRegularizerImputer().fit_transform(augmented)[:, : X.shape[1]]
-                    err = {name_: (Z_hat * sd + mean - X) / X.std(axis=0) for name_, Z_hat in fits.items()}
-                    row = {name_: float(np.sqrt(np.mean(e[~mask] ** 2))) for name_, e in err.items()}
-                for name_, value in row.items():
-                    scores.setdefault(name_, []).append(value)
-            means = "  ".join(f"{name_} {np.mean(v):.4f}" for name_, v in scores.items())
-            line = f"leads {args.lead} {name} {mechanism} p={p:g} ({args.masks} masks): {means}"
-            if args.lead == "indicators":
-                d = np.subtract(scores["indicators"], scores["ours"])
-                se = d.std(ddof=1) / np.sqrt(d.size) if d.size > 1 else float("nan")
-                line += f"  difference {d.mean():+.4f} (se {se:.4f}), better on {(d < 0).sum()} of {d.size}"
-            print(line, flush=True)
+        cells, args.masks = cells[-1:], 1
+    for P in cells:
+        X = load_dataset(P["spec"], args.data_dir, settings["subsample_seed"])
+        scores = {}
+        for k in range(args.masks):
+            mask = draw_mask(X, P["mechanism"], P["p"], P["seed"] + k, slope=settings["slope"])
+            Z, mean, sd = _standardise(np.where(mask, X, np.nan))
+            fits = {"ours": KernelRegularizerImputer().fit_transform(Z)}
+            if blend:
+                fits["missForest"] = missforest_imputer(max_features=1 / 3).fit_transform(Z)
+                fits["blend"] = (fits["ours"] + fits["missForest"]) / 2
+                row = {name: sse(Z_hat * sd + mean, X) for name, Z_hat in fits.items()}
+            else:
+                augmented = with_indicators(Z, mask)
+                fits["indicators"] = KernelRegularizerImputer().fit_transform(augmented)[:, : X.shape[1]]
+                err = {name: (Z_hat * sd + mean - X) / X.std(axis=0) for name, Z_hat in fits.items()}
+                row = {name: float(np.sqrt(np.mean(e[~mask] ** 2))) for name, e in err.items()}
+            for name, value in row.items():
+                scores.setdefault(name, []).append(value)
+        means = "  ".join(f"{name} {np.mean(v):.4f}" for name, v in scores.items())
+        cell = f"{P['dataset']} {P['mechanism']} p={P['p']:g}"
+        line = f"leads {args.lead} {cell} ({args.masks} masks): {means}"
+        if not blend:
+            d = np.subtract(scores["indicators"], scores["ours"])
+            se = d.std(ddof=1) / np.sqrt(d.size) if d.size > 1 else float("nan")
+            line += f"  difference {d.mean():+.4f} (se {se:.4f}), better on {(d < 0).sum()} of {d.size}"
+        print(line, flush=True)
 
 
 def main(argv=None):

@@ -31,7 +31,7 @@ __all__ = ["is_auto", "mean_fill_holdout", "report_holdout", "transform_candidat
 
 
 def is_auto(value) -> bool:
-    """Whether a knob is ``"auto"`` (searched)."""
+    """Whether a knob is ``"auto"`` (searched, or set by the data and the solver path)."""
     return isinstance(value, str) and value == "auto"
 
 
